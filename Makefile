@@ -1,0 +1,42 @@
+# fem_runout — two commands for a newcomer: `make demo` and `make test`.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+MPIEXEC := $(VENV)/bin/mpiexec
+NP ?= 2
+export NUMBA_NUM_THREADS := 1
+export OMP_NUM_THREADS := 1
+export OPENBLAS_NUM_THREADS := 1
+SERIAL_TIMEOUT ?= 900
+MPI_TIMEOUT ?= 900
+DEMO_CASE ?= cases/inclined_dam_break.yaml
+
+.PHONY: setup demo test test-serial test-mpi lint bench clean
+
+setup: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml requirements.lock scripts/find_python.sh
+	@set -e; PYTHON=$$(bash scripts/find_python.sh); \
+	if [ ! -x $(PY) ]; then echo "creating $(VENV) with $$PYTHON"; $$PYTHON -m venv $(VENV); fi; \
+	$(PY) -m pip install -q --upgrade pip; \
+	$(PY) -m pip install -q -c requirements.lock -e '.[dev]'; \
+	touch $@
+
+demo: setup
+	$(MPIEXEC) -n $(NP) $(PY) -m fem_runout $(DEMO_CASE) --overwrite
+	@echo "results: results/inclined_dam_break/ (fields.bp for ParaView, series.csv, *.png)"
+
+test: setup
+	@status=0; \
+	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests || status=1; \
+	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x -m "not serial_only" tests/mpi || status=1; \
+	exit $$status
+
+lint: setup
+	$(VENV)/bin/ruff check fem_runout mpm tests
+
+bench: setup
+	$(PY) -m fem_runout.bench
+
+clean:
+	rm -rf results .pytest_cache

@@ -1,0 +1,44 @@
+"""Callbacks the runner calls: outputs and diagnostics live here, never inside the time loop."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from fem_runout.solver_api import Solver
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    """Where the run is.
+
+    Attributes:
+        t: Simulated time after the step [s].
+        dt: Size of the step just taken (0 before the first step) [s].
+        step: Number of steps taken so far.
+    """
+
+    t: float
+    dt: float
+    step: int
+
+
+class Callback(Protocol):
+    """A scheduled action of the runner; every method is collective (called on every rank)."""
+
+    def start(self, solver: Solver, info: StepInfo) -> None:
+        """Called once with the initial state (t = 0)."""
+        ...
+
+    def step(self, solver: Solver, info: StepInfo) -> None:
+        """Called after every time step."""
+        ...
+
+    def output(self, solver: Solver, info: StepInfo) -> None:
+        """Called at every output time, including t = 0 and the final time."""
+        ...
+
+    def finish(self, solver: Solver, info: StepInfo) -> None:
+        """Called once after the last step."""
+        ...

@@ -1,0 +1,438 @@
+"""The case file schema: frozen pydantic models with defaults and checks.
+
+Every model forbids unknown keys. Expressions are checked when the case is
+validated and stored as source strings; ``*_fn()`` helpers return compiled
+:class:`~fem_runout.config.expr.Expression` objects.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
+
+from fem_runout.config.expr import Expression, ExpressionError, check_expression, compile_expression
+
+__all__ = [
+    "BoundarySides",
+    "Case",
+    "DomainSpec",
+    "FrictionSpec",
+    "InitialSpec",
+    "MaterialSpec",
+    "NumericsSpec",
+    "OutputSpec",
+    "RheologySpec",
+    "SpecError",
+    "TerrainSpec",
+    "TimeSpec",
+]
+
+SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
+BoundaryKind = Literal["open", "wall"]
+
+
+class SpecError(ValueError):
+    """A check failed; ``key`` (if set) is the sub-key the problem is about."""
+
+    def __init__(self, message: str, key: str | None = None) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _real(value: Any) -> Any:
+    """Accept finite real numbers only (no strings, no booleans)."""
+    if value is None:
+        return value
+    if not _is_number(value):
+        raise SpecError(f"must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise SpecError(f"must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _integer(value: Any) -> Any:
+    """Accept integers only (no floats, strings or booleans)."""
+    if value is None:
+        return value
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise SpecError(f"must be an integer, got {value!r}")
+    return value
+
+
+def _expression(value: Any) -> Any:
+    """Accept an expression string (or a plain number) and check it."""
+    if _is_number(value):
+        value = repr(value)
+    if not isinstance(value, str):
+        raise SpecError(f'must be an expression string such as "100 - x/3", got {value!r}')
+    try:
+        check_expression(value)
+    except ExpressionError as exc:
+        raise SpecError(str(exc)) from None
+    return value
+
+
+def _strict_bool(value: Any) -> Any:
+    if not isinstance(value, bool):
+        raise SpecError(f"must be true or false, got {value!r}")
+    return value
+
+
+Real = Annotated[float, BeforeValidator(_real)]
+Int = Annotated[int, BeforeValidator(_integer)]
+Expr = Annotated[str, BeforeValidator(_expression)]
+Bool = Annotated[bool, BeforeValidator(_strict_bool)]
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class BoundarySides(_Spec):
+    """Boundary kind of each side of the rectangle: ``open`` (outflow) or ``wall`` (slip)."""
+
+    left: BoundaryKind = "open"
+    right: BoundaryKind = "open"
+    bottom: BoundaryKind = "open"
+    top: BoundaryKind = "open"
+
+
+def _boundary(value: Any) -> Any:
+    """Turn ``open``/``wall`` into the same kind on every side."""
+    if isinstance(value, str):
+        if value not in ("open", "wall"):
+            raise SpecError(
+                f"{value!r} is not a known boundary; allowed: open, wall, "
+                "or a mapping of left/right/bottom/top to open/wall"
+            )
+        return dict.fromkeys(SIDES, value)
+    return value
+
+
+def _extent(value: Any) -> Any:
+    ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(_is_number, value))
+    if not ok or not all(math.isfinite(v) for v in value):
+        raise SpecError(f"must be four numbers [xmin, xmax, ymin, ymax], got {value!r}")
+    if not (value[0] < value[1] and value[2] < value[3]):
+        raise SpecError(f"must have xmin < xmax and ymin < ymax, got {list(value)!r}")
+    return tuple(float(v) for v in value)
+
+
+def _cells(value: Any) -> Any:
+    if value is None:
+        return value
+    ok = isinstance(value, list | tuple) and len(value) == 2
+    if not ok or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
+        raise SpecError(f"must be two positive integers, got {value!r}")
+    return tuple(value)
+
+
+class DomainSpec(_Spec):
+    """The rectangle, its structured mesh and its boundary conditions.
+
+    Attributes:
+        extent: ``(xmin, xmax, ymin, ymax)`` [m].
+        cells: Number of cells along x and y (or ``None`` when ``cell_size`` is given).
+        cell_size: Target cell size [m] (or ``None`` when ``cells`` is given).
+        boundary: Kind of each side.
+    """
+
+    extent: Annotated[tuple[float, float, float, float], BeforeValidator(_extent)]
+    cells: Annotated[tuple[int, int] | None, BeforeValidator(_cells)] = None
+    cell_size: Real | None = Field(None, gt=0)
+    boundary: Annotated[BoundarySides, BeforeValidator(_boundary)] = BoundarySides()
+
+    @model_validator(mode="after")
+    def _one_resolution(self) -> DomainSpec:
+        if (self.cells is None) == (self.cell_size is None):
+            raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>")
+        return self
+
+    @property
+    def resolved_cells(self) -> tuple[int, int]:
+        """Number of cells ``(nx, ny)``, from ``cells`` or from ``cell_size`` (at least 1)."""
+        if self.cells is not None:
+            return self.cells
+        assert self.cell_size is not None
+        xmin, xmax, ymin, ymax = self.extent
+        return (
+            max(1, round((xmax - xmin) / self.cell_size)),
+            max(1, round((ymax - ymin) / self.cell_size)),
+        )
+
+    @property
+    def sides(self) -> dict[str, BoundaryKind]:
+        """Boundary kind by side name: ``left``, ``right``, ``bottom``, ``top``."""
+        return {side: getattr(self.boundary, side) for side in SIDES}
+
+
+class TerrainSpec(_Spec):
+    """Terrain elevation ``z(x, y)`` [m]."""
+
+    elevation: Expr = "0"
+
+    def elevation_fn(self) -> Expression:
+        """Return the compiled elevation expression."""
+        return compile_expression(self.elevation, "terrain.elevation")
+
+
+def _velocity(value: Any) -> Any:
+    if not isinstance(value, list | tuple) or len(value) != 2:
+        raise SpecError(f"must be two expressions [u, v], got {value!r}")
+    return tuple(value)
+
+
+class InitialSpec(_Spec):
+    """Initial state: flow depth ``h`` [m] or free surface ``h + z`` [m], and velocity [m/s]."""
+
+    depth: Expr | None = None
+    free_surface: Expr | None = None
+    velocity: Annotated[tuple[Expr, Expr], BeforeValidator(_velocity)] = ("0", "0")
+
+    @model_validator(mode="after")
+    def _one_state(self) -> InitialSpec:
+        if (self.depth is None) == (self.free_surface is None):
+            raise SpecError("give exactly one of depth or free_surface")
+        return self
+
+    def depth_fn(self) -> Expression | None:
+        """Return the compiled depth expression, or ``None`` if ``free_surface`` is given."""
+        return None if self.depth is None else compile_expression(self.depth, "initial.depth")
+
+    def free_surface_fn(self) -> Expression | None:
+        """Return the compiled free-surface expression, or ``None`` if ``depth`` is given."""
+        if self.free_surface is None:
+            return None
+        return compile_expression(self.free_surface, "initial.free_surface")
+
+    def velocity_fns(self) -> tuple[Expression, Expression]:
+        """Return the compiled velocity components ``(u, v)``."""
+        u, v = self.velocity
+        return (
+            compile_expression(u, "initial.velocity[0]"),
+            compile_expression(v, "initial.velocity[1]"),
+        )
+
+
+class FrictionSpec(_Spec):
+    """Basal friction law (validated here, implemented by the physics modules).
+
+    Attributes:
+        law: ``none``, ``coulomb`` or ``voellmy``.
+        mu: Friction coefficient (or ``None``).
+        phi_deg: Friction angle [deg] (or ``None``); ``mu = tan(phi)``.
+        xi: Voellmy turbulence coefficient [m/s^2] (voellmy only).
+        gamma: Relaxation of the sign function (coulomb/voellmy; default 1e-2).
+    """
+
+    law: Literal["none", "coulomb", "voellmy"] = "none"
+    mu: Real | None = Field(None, ge=0)
+    phi_deg: Real | None = Field(None, ge=0, lt=90)
+    xi: Real | None = Field(None, gt=0)
+    gamma: Real | None = Field(None, gt=0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_gamma(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("law") in ("coulomb", "voellmy"):
+            if data.get("gamma") is None:
+                return {**data, "gamma": 1e-2}
+        return data
+
+    @model_validator(mode="after")
+    def _check_law(self) -> FrictionSpec:
+        if self.law == "none":
+            for key in ("mu", "phi_deg", "xi", "gamma"):
+                if getattr(self, key) is not None:
+                    raise SpecError("not allowed with law 'none'", key)
+            return self
+        if (self.mu is None) == (self.phi_deg is None):
+            raise SpecError(f"law '{self.law}' needs exactly one of mu or phi_deg")
+        if self.law == "voellmy" and self.xi is None:
+            raise SpecError("required for law 'voellmy' (turbulence coefficient, m/s^2)", "xi")
+        if self.law == "coulomb" and self.xi is not None:
+            raise SpecError("only used by law 'voellmy'", "xi")
+        return self
+
+    @property
+    def mu_value(self) -> float | None:
+        """The friction coefficient: ``mu``, or ``tan(phi_deg)``, or ``None`` for law none."""
+        if self.mu is not None:
+            return self.mu
+        if self.phi_deg is not None:
+            return math.tan(math.radians(self.phi_deg))
+        return None
+
+
+class RheologySpec(_Spec):
+    """Internal rheology (validated here, implemented by the physics modules).
+
+    Attributes:
+        law: ``none`` or ``bingham``.
+        viscosity: Bingham viscosity [Pa s].
+        yield_stress: Bingham yield stress [Pa].
+    """
+
+    law: Literal["none", "bingham"] = "none"
+    viscosity: Real | None = Field(None, ge=0)
+    yield_stress: Real | None = Field(None, ge=0)
+
+    @model_validator(mode="after")
+    def _check_law(self) -> RheologySpec:
+        for key in ("viscosity", "yield_stress"):
+            given = getattr(self, key) is not None
+            if self.law == "none" and given:
+                raise SpecError("not allowed with law 'none'", key)
+            if self.law == "bingham" and not given:
+                raise SpecError("required for law 'bingham'", key)
+        return self
+
+
+class MaterialSpec(_Spec):
+    """Material density [kg/m^3], friction and rheology."""
+
+    density: Real = Field(1000.0, gt=0)
+    friction: FrictionSpec = FrictionSpec()
+    rheology: RheologySpec = RheologySpec()
+
+
+class TimeSpec(_Spec):
+    """End time [s], CFL number and optional step limits."""
+
+    end: Real = Field(gt=0)
+    cfl: Real = Field(0.9, gt=0, le=1)
+    max_steps: Int | None = Field(None, gt=0)
+    dt_max: Real | None = Field(None, gt=0)
+
+
+class OutputSpec(_Spec):
+    """Where and how often to write results.
+
+    ``dir`` and ``every`` are filled by :class:`Case` (``results/<name>``, ``end/10``).
+    """
+
+    dir: str | None = None
+    every: Real | None = Field(None, gt=0)
+    front_threshold: Real = Field(1e-3, gt=0)
+    pictures: Bool = True
+
+
+class NumericsSpec(_Spec):
+    """Wet/dry threshold [m] and flux-corrected transport switch."""
+
+    dry_tolerance: Real = Field(1e-6, gt=0)
+    fct: Bool = True
+
+
+_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _name(value: Any) -> Any:
+    if not isinstance(value, str) or not _NAME.match(value):
+        raise SpecError(f"must use only letters, digits, '_' and '-', got {value!r}")
+    return value
+
+
+def _fill_output(data: dict[str, Any]) -> dict[str, Any]:
+    """Fill ``output.dir`` and ``output.every`` from ``name`` and ``time.end``."""
+    output = data.get("output", {})
+    if not isinstance(output, dict):
+        return data
+    output = dict(output)
+    name = data.get("name")
+    if output.get("dir") is None and isinstance(name, str) and _NAME.match(name):
+        output["dir"] = f"results/{name}"
+    time = data.get("time")
+    end = time.get("end") if isinstance(time, dict) else None
+    if output.get("every") is None and _is_number(end) and math.isfinite(end) and end > 0:
+        output["every"] = end / 10
+    return {**data, "output": output}
+
+
+class Case(_Spec):
+    """A validated run-out case.
+
+    Attributes:
+        name: Case name (letters, digits, ``_`` and ``-``).
+        method: ``tg2`` or ``mpm``.
+        gravity: Gravitational acceleration [m/s^2].
+        domain: Rectangle, mesh and boundary.
+        terrain: Elevation expression.
+        initial: Initial depth or free surface, and velocity.
+        material: Density, friction and rheology.
+        time: End time and step control.
+        output: Output directory and frequency.
+        numerics: Wet/dry tolerance and FCT switch.
+        source_dir: Folder of the case file (not serialised), for relative input paths.
+    """
+
+    name: Annotated[str, BeforeValidator(_name)]
+    method: Literal["tg2", "mpm"] = "tg2"
+    gravity: Real = Field(9.81, gt=0)
+    domain: DomainSpec
+    terrain: TerrainSpec = TerrainSpec()
+    initial: InitialSpec
+    material: MaterialSpec = MaterialSpec()
+    time: TimeSpec
+    output: OutputSpec = OutputSpec()
+    numerics: NumericsSpec = NumericsSpec()
+
+    _source_dir: Path | None = PrivateAttr(None)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _defaults_from_other_keys(cls, data: Any) -> Any:
+        return _fill_output(data) if isinstance(data, dict) else data
+
+    def __eq__(self, other: object) -> bool:
+        """Equal when all fields are equal (``source_dir`` is ignored)."""
+        if not isinstance(other, Case):
+            return NotImplemented
+        return self.__dict__ == other.__dict__
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.__dict__.values()))
+
+    @property
+    def source_dir(self) -> Path | None:
+        """Folder of the case file, or ``None`` if the case did not come from a file."""
+        return self._source_dir
+
+    def with_source_dir(self, source_dir: str | Path | None) -> Case:
+        """Return a copy of this case whose relative input paths resolve against ``source_dir``."""
+        case = self.model_copy()
+        case._source_dir = None if source_dir is None else Path(source_dir).resolve()
+        return case
+
+    def resolve_input(self, path: str | Path) -> Path:
+        """Resolve an input file path; relative paths are relative to the case file folder.
+
+        Without a case file, relative paths are relative to the current working directory.
+        """
+        p = Path(path).expanduser()
+        if p.is_absolute():
+            return p
+        return (self._source_dir or Path.cwd()) / p
+
+    @property
+    def output_dir(self) -> Path:
+        """The output directory (relative paths are relative to the working directory)."""
+        return Path(self.output.dir or f"results/{self.name}")
+
+    def initial_depth(self, x: Any, y: Any) -> np.ndarray:
+        """Return the initial depth: ``depth``, or ``max(free_surface - elevation, 0)``."""
+        depth = self.initial.depth_fn()
+        if depth is not None:
+            return depth(x, y)
+        surface = self.initial.free_surface_fn()
+        assert surface is not None
+        return np.maximum(surface(x, y) - self.terrain.elevation_fn()(x, y), 0.0)

@@ -1,0 +1,237 @@
+"""Structured quadrilateral mesh, the Q1/DG0/DQ1 spaces and the per-cell geometric arrays.
+
+Every method shares one :class:`Discretization`: the Q1 space holds the state, the lumped Q1
+mass is the nodal area, and the cell–node arrays (``cell_nodes``, ``C``) feed the vectorised
+kernels (low-order fluxes, FCT, particle transfers).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import basix
+import numpy as np
+import ufl
+from dolfinx import fem, la, mesh
+from mpi4py import MPI
+
+SIDES = ("left", "right", "bottom", "top")
+_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
+
+
+@dataclass
+class Side:
+    """One side of the rectangle.
+
+    Attributes:
+        name: left, right, bottom or top.
+        kind: ``"open"`` or ``"wall"``.
+        normal: Outward unit normal.
+        nodes: Local node indices on the side.
+        weight: ``∫_side φ_i ds`` for those nodes.
+    """
+
+    name: str
+    kind: str
+    normal: np.ndarray
+    nodes: np.ndarray
+    weight: np.ndarray
+
+
+@dataclass
+class Discretization:
+    """Mesh, spaces and precomputed arrays of a structured run.
+
+    Attributes:
+        comm: Communicator.
+        mesh: The quadrilateral mesh.
+        V: Scalar Q1 space (the state space).
+        extent: (xmin, xmax, ymin, ymax).
+        cells: (nx, ny) number of cells.
+        n_owned_nodes: Owned Q1 dofs on this rank.
+        n_owned_cells: Owned cells on this rank.
+        cell_nodes: (n_cells_local, 4) local Q1 dofs of every local cell (owned, then ghosts).
+        C: (n_cells_local, 4, 4, 2) array ``∫_K φ_i ∇φ_j``.
+        cell_area: (n_cells_local,) cell areas.
+        lumped_mass: Nodal areas ``∫ φ_i`` for local nodes (owned then ghosts).
+        coords: (n_nodes_local, 2) node coordinates.
+        sides: Boundary sides with their kind, nodes and weights.
+    """
+
+    comm: MPI.Comm
+    mesh: mesh.Mesh
+    V: fem.FunctionSpace
+    extent: tuple[float, float, float, float]
+    cells: tuple[int, int]
+    n_owned_nodes: int
+    n_owned_cells: int
+    cell_nodes: np.ndarray
+    C: np.ndarray
+    cell_area: np.ndarray
+    lumped_mass: np.ndarray
+    coords: np.ndarray
+    sides: list[Side]
+
+    @property
+    def spacing(self) -> tuple[float, float]:
+        """Cell size (dx, dy)."""
+        xmin, xmax, ymin, ymax = self.extent
+        return (xmax - xmin) / self.cells[0], (ymax - ymin) / self.cells[1]
+
+    def nodal_sum(self, values: np.ndarray) -> np.ndarray:
+        """Sum contributions to shared nodes across ranks (owned + ghost), in place result.
+
+        Args:
+            values: (n_nodes_local,) or (n_nodes_local, bs) local contributions.
+
+        Returns:
+            The same shape, with owned and ghost entries equal to the global sum.
+        """
+        bs = 1 if values.ndim == 1 else values.shape[1]
+        vec = self._vector(bs)
+        vec.array[:] = values.reshape(-1)
+        vec.scatter_reverse(la.InsertMode.add)
+        vec.scatter_forward()
+        return vec.array.reshape(values.shape).copy()
+
+    def update_ghosts(self, values: np.ndarray) -> None:
+        """Copy owned values to the ghost entries of ``values`` (in place)."""
+        if self.comm.size == 1:
+            return
+        bs = 1 if values.ndim == 1 else values.shape[1]
+        vec = self._vector(bs)
+        vec.array[:] = values.reshape(-1)
+        vec.scatter_forward()
+        values.reshape(-1)[:] = vec.array
+
+    def _vector(self, bs: int) -> la.Vector:
+        cache = self.__dict__.setdefault("_vectors", {})
+        if bs not in cache:
+            cache[bs] = la.vector(self.V.dofmap.index_map, bs)
+        return cache[bs]
+
+
+def build_discretization(
+    comm: MPI.Comm,
+    extent: tuple[float, float, float, float],
+    cells: tuple[int, int],
+    boundary: dict[str, str],
+) -> Discretization:
+    """Create the mesh, the Q1 space and every geometric array.
+
+    Args:
+        comm: Communicator.
+        extent: (xmin, xmax, ymin, ymax).
+        cells: (nx, ny).
+        boundary: Kind (``"open"``/``"wall"``) of each side.
+
+    Returns:
+        The discretization.
+    """
+    xmin, xmax, ymin, ymax = extent
+    msh = mesh.create_rectangle(
+        comm, [[xmin, ymin], [xmax, ymax]], list(cells), mesh.CellType.quadrilateral,
+        ghost_mode=mesh.GhostMode.shared_facet,
+    )
+    V = fem.functionspace(msh, ("Lagrange", 1))
+    tdim = msh.topology.dim
+    cmap = msh.topology.index_map(tdim)
+    n_cells = cmap.size_local + cmap.num_ghosts
+    cell_nodes = np.asarray(V.dofmap.list[:n_cells], dtype=np.int64)
+    coords = V.tabulate_dof_coordinates()[:, :2].copy()
+    C, phi_int, area = _cell_integrals(coords[cell_nodes])
+    disc = Discretization(
+        comm=comm, mesh=msh, V=V, extent=tuple(map(float, extent)), cells=tuple(cells),
+        n_owned_nodes=V.dofmap.index_map.size_local, n_owned_cells=cmap.size_local,
+        cell_nodes=cell_nodes, C=C, cell_area=area, lumped_mass=np.empty(0), coords=coords,
+        sides=[],
+    )
+    owned = slice(0, cmap.size_local)
+    mass = np.zeros(coords.shape[0])
+    np.add.at(mass, cell_nodes[owned].ravel(), phi_int[owned].ravel())
+    disc.lumped_mass = disc.nodal_sum(mass)
+    disc.sides = [_side(disc, name, boundary.get(name, "open")) for name in SIDES]
+    return disc
+
+
+def _cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``∫_K φ_i ∇φ_j``, ``∫_K φ_i`` and |K| for bilinear cells with node coordinates ``xc``.
+
+    Args:
+        xc: (n_cells, 4, 2) node coordinates in the Q1 reference order.
+    """
+    pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
+    el = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+    tab = el.tabulate(1, pts)  # (3, nq, 4, 1)
+    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
+    J = np.einsum("cka,qkb->cqab", xc, dphi)  # dx_a / dX_b
+    detJ = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    Jinv = np.empty_like(J)
+    Jinv[..., 0, 0], Jinv[..., 1, 1] = J[..., 1, 1] / detJ, J[..., 0, 0] / detJ
+    Jinv[..., 0, 1], Jinv[..., 1, 0] = -J[..., 0, 1] / detJ, -J[..., 1, 0] / detJ
+    grad = np.einsum("qkb,cqba->cqka", dphi, Jinv)  # physical gradients
+    w = wts[None, :] * np.abs(detJ)
+    C = np.einsum("cq,qi,cqja->cija", w, phi, grad)
+    phi_int = np.einsum("cq,qi->ci", w, phi)
+    return C, phi_int, w.sum(axis=1)
+
+
+def _side(disc: Discretization, name: str, kind: str) -> Side:
+    """Nodes of one side and their boundary weights ``∫ φ_i ds`` (exact for Q1)."""
+    xmin, xmax, ymin, ymax = disc.extent
+    x, y = disc.coords[:, 0], disc.coords[:, 1]
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    axis, value = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}[
+        name
+    ]
+    nodes = np.flatnonzero(np.abs(disc.coords[:, axis] - value) < tol)
+    along = (y if axis == 0 else x)[nodes]
+    lo, hi = (ymin, ymax) if axis == 0 else (xmin, xmax)
+    n_cells = disc.cells[1] if axis == 0 else disc.cells[0]
+    h = (hi - lo) / n_cells
+    weight = np.where((np.abs(along - lo) < tol) | (np.abs(along - hi) < tol), 0.5 * h, h)
+    return Side(name, kind, np.array(_NORMALS[name]), nodes, weight)
+
+
+def lumped_mass_form(V: fem.FunctionSpace) -> fem.Form:
+    """The form ``∫ φ_i dx`` (kept for tests that compare against dolfinx assembly)."""
+    return fem.form(ufl.TestFunction(V) * ufl.dx)
+
+
+class GhostReducer:
+    """Max/min reduction of nodal values over the ranks that share a node.
+
+    dolfinx scatters only add or insert; the FCT bounds need the extremum over a node's whole
+    patch, which straddles ranks. Ghost entries are sent to their owners, reduced there, and the
+    result is copied back to the ghosts.
+    """
+
+    def __init__(self, disc: Discretization) -> None:
+        imap = disc.V.dofmap.index_map
+        self.disc = disc
+        self.comm = disc.comm
+        n_own = imap.size_local
+        ghosts, owners = np.asarray(imap.ghosts), np.asarray(imap.owners)
+        order = np.argsort(owners, kind="stable")
+        self.send_local = n_own + order
+        self.send_counts = np.bincount(owners, minlength=self.comm.size).astype(np.int64)
+        recv_counts = np.array(self.comm.alltoall(self.send_counts.tolist()), dtype=np.int64)
+        self.recv_counts = recv_counts
+        recv = np.empty(int(recv_counts.sum()), dtype=np.int64)
+        self._exchange(ghosts[order].astype(np.int64), recv)
+        self.recv_local = (recv - imap.local_range[0]).astype(np.int64)
+
+    def _exchange(self, send: np.ndarray, recv: np.ndarray) -> None:
+        sd = np.concatenate([[0], np.cumsum(self.send_counts)[:-1]])
+        rd = np.concatenate([[0], np.cumsum(self.recv_counts)[:-1]])
+        self.comm.Alltoallv([send, (self.send_counts, sd)], [recv, (self.recv_counts, rd)])
+
+    def reduce(self, values: np.ndarray, op: str) -> None:
+        """Reduce ``values`` (local, owned then ghosts) in place with ``op`` = "max" or "min"."""
+        if self.comm.size == 1:
+            return
+        recv = np.empty(int(self.recv_counts.sum()))
+        self._exchange(np.ascontiguousarray(values[self.send_local]), recv)
+        ufunc = np.maximum if op == "max" else np.minimum
+        ufunc.at(values, self.recv_local, recv)
+        self.disc.update_ghosts(values)

@@ -1,0 +1,276 @@
+"""Global diagnostics of the state: volume balance, energy, extent, and peak envelopes."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from mpi4py import MPI  # before dolfinx
+
+# isort: split
+
+import numpy as np
+from dolfinx import fem, io
+
+from fem_runout.output.gather import gather_nodal
+
+if TYPE_CHECKING:
+    from fem_runout.callbacks import StepInfo
+    from fem_runout.solver_api import Solver
+
+__all__ = ["SERIES_COLUMNS", "PeakTracker", "SeriesRecorder", "compute_diagnostics", "nodal_speed"]
+
+SERIES_COLUMNS: tuple[str, ...] = (
+    "t",
+    "dt",
+    "volume",
+    "mass_error",
+    "kinetic_energy",
+    "max_depth",
+    "max_speed",
+    "wet_area",
+    "front_x",
+    "outflow",
+)
+
+
+def nodal_speed(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, threshold: float) -> np.ndarray:
+    """Depth-averaged speed ``|(hu, hv)| / h`` where ``h > threshold``, 0 elsewhere.
+
+    Args:
+        h: Nodal depth [m].
+        hu: Nodal x discharge [m^2/s].
+        hv: Nodal y discharge [m^2/s].
+        threshold: Dry threshold [m].
+
+    Returns:
+        Nodal speed [m/s], same shape as ``h``.
+    """
+    wet = h > threshold
+    speed = np.zeros_like(h, dtype=np.float64)
+    speed[wet] = np.hypot(hu[wet], hv[wet]) / h[wet]
+    return speed
+
+
+def _owned(solver: Solver) -> tuple[np.ndarray, ...]:
+    """Owned slices of ``x, m, h, hu, hv`` of a solver."""
+    n = solver.V.dofmap.index_map.size_local
+    x = solver.V.tabulate_dof_coordinates()[:n, 0]
+    m = np.asarray(solver.lumped_mass[:n], dtype=np.float64)
+    h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
+    return x, m, h, hu, hv
+
+
+def compute_diagnostics(solver: Solver, threshold: float, density: float) -> dict[str, float]:
+    """Global diagnostics of the current state (collective; owned dofs only).
+
+    Args:
+        solver: The solver (see :class:`fem_runout.solver_api.Solver`).
+        threshold: Dry threshold [m]: nodes with ``h > threshold`` are wet.
+        density: Bulk density [kg/m^3] for the kinetic energy.
+
+    Returns:
+        ``volume`` [m^3] (``sum m_i h_i``), ``kinetic_energy`` [J] (``sum m_i rho/2 |hu|^2/h``
+        over wet nodes), ``max_depth`` [m], ``max_speed`` [m/s] (over wet nodes, 0 if none),
+        ``wet_area`` [m^2], ``front_x`` [m] (largest x of a wet node, nan if none) and
+        ``outflow`` [m^3] (``solver.outflow_volume``). The same on every rank.
+    """
+    comm = solver.comm
+    x, m, h, hu, hv = _owned(solver)
+    wet = h > threshold
+    q2 = hu[wet] ** 2 + hv[wet] ** 2
+    local_sums = np.array(
+        [m @ h, 0.5 * density * np.sum(m[wet] * q2 / h[wet]), np.sum(m[wet])], dtype=np.float64
+    )
+    sums = np.empty_like(local_sums)
+    comm.Allreduce(local_sums, sums, op=MPI.SUM)
+    speed = np.sqrt(q2) / h[wet]
+    local_max = np.array(
+        [
+            h.max() if h.size else -np.inf,
+            speed.max() if speed.size else 0.0,
+            x[wet].max() if speed.size else -np.inf,
+        ],
+        dtype=np.float64,
+    )
+    maxima = np.empty_like(local_max)
+    comm.Allreduce(local_max, maxima, op=MPI.MAX)
+    return {
+        "volume": float(sums[0]),
+        "kinetic_energy": float(sums[1]),
+        "max_depth": float(maxima[0]),
+        "max_speed": float(maxima[1]),
+        "wet_area": float(sums[2]),
+        "front_x": float(maxima[2]) if np.isfinite(maxima[2]) else float("nan"),
+        "outflow": float(solver.outflow_volume),
+    }
+
+
+class SeriesRecorder:
+    """Callback recording the time series of :func:`compute_diagnostics` to a CSV file.
+
+    One row per recorded state (the initial state and every step) with the columns
+    :data:`SERIES_COLUMNS`; ``mass_error = (volume + outflow - V0) / V0`` with ``V0`` the
+    initial volume (the absolute error if ``V0 == 0``). The CSV is written on rank 0 at every
+    output and at finish, so a crashed run keeps its series.
+    """
+
+    def __init__(self, path: str | Path, threshold: float, density: float) -> None:
+        """Create the recorder.
+
+        Args:
+            path: CSV file to write (its folder is created on rank 0 when writing).
+            threshold: Dry threshold [m].
+            density: Bulk density [kg/m^3].
+        """
+        self.path = Path(path)
+        self.threshold = float(threshold)
+        self.density = float(density)
+        self.initial_volume = float("nan")
+        self._columns: dict[str, list[float]] = {name: [] for name in SERIES_COLUMNS}
+        self._last_step: int | None = None
+        self._rank = 0
+
+    @property
+    def series(self) -> dict[str, np.ndarray]:
+        """The recorded columns as float arrays (the same on every rank)."""
+        return {name: np.asarray(col, dtype=np.float64) for name, col in self._columns.items()}
+
+    def _record(self, solver: Solver, info: StepInfo) -> None:
+        """Append one row for the current state (collective)."""
+        diag = compute_diagnostics(solver, self.threshold, self.density)
+        v0 = self.initial_volume
+        balance = diag["volume"] + diag["outflow"] - v0
+        row = {"t": info.t, "dt": info.dt, **diag}
+        row["mass_error"] = balance / v0 if v0 != 0.0 else balance
+        for name in SERIES_COLUMNS:
+            self._columns[name].append(float(row[name]))
+        self._last_step = info.step
+
+    def write_csv(self) -> None:
+        """Write the series to :attr:`path` (rank 0 only; other ranks do nothing)."""
+        if self._rank != 0:
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_suffix(self.path.suffix + ".tmp")
+        with tmp.open("w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(SERIES_COLUMNS)
+            for row in zip(*(self._columns[name] for name in SERIES_COLUMNS), strict=True):
+                writer.writerow([repr(v) for v in row])
+        tmp.replace(self.path)
+
+    def start(self, solver: Solver, info: StepInfo) -> None:
+        """Record the initial volume and the first row."""
+        self._rank = solver.comm.rank
+        self.initial_volume = compute_diagnostics(solver, self.threshold, self.density)["volume"]
+        self._record(solver, info)
+
+    def step(self, solver: Solver, info: StepInfo) -> None:
+        """Record a row after a step."""
+        self._record(solver, info)
+
+    def output(self, solver: Solver, info: StepInfo) -> None:
+        """Rewrite the CSV so far."""
+        self.write_csv()
+
+    def finish(self, solver: Solver, info: StepInfo) -> None:
+        """Record the final state if not yet recorded, and write the CSV."""
+        if self._last_step != info.step:
+            self._record(solver, info)
+        self.write_csv()
+
+
+class PeakTracker:
+    """Callback tracking, per node, the running maxima of depth and speed.
+
+    Updated at start and after every step on the owned nodes (no communication). At finish
+    the envelopes are written as Q1 functions ``peak_depth`` and ``peak_speed`` to
+    ``out_dir/peaks.bp`` (VTX) if ``out_dir`` is given.
+    """
+
+    def __init__(self, out_dir: str | Path | None, threshold: float, engine: str = "BP4") -> None:
+        """Create the tracker.
+
+        Args:
+            out_dir: Folder for ``peaks.bp``; ``None`` to write nothing.
+            threshold: Dry threshold [m] for the speed.
+            engine: ADIOS2 engine of the VTX file.
+        """
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.threshold = float(threshold)
+        self.engine = engine
+        self.peak_depth = np.zeros(0)
+        self.peak_speed = np.zeros(0)
+        self._V: fem.FunctionSpace | None = None
+
+    def _update(self, solver: Solver) -> None:
+        """Fold the current state into the envelopes."""
+        n = solver.V.dofmap.index_map.size_local
+        h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
+        np.maximum(self.peak_depth, h, out=self.peak_depth)
+        np.maximum(self.peak_speed, nodal_speed(h, hu, hv, self.threshold), out=self.peak_speed)
+
+    def functions(self) -> tuple[fem.Function, fem.Function]:
+        """Return the envelopes as Q1 functions ``peak_depth``, ``peak_speed`` (collective).
+
+        Returns:
+            The two functions, ghost values updated.
+
+        Raises:
+            RuntimeError: If called before :meth:`start`.
+        """
+        if self._V is None:
+            raise RuntimeError("PeakTracker.functions() called before start()")
+        out = []
+        for name, values in (("peak_depth", self.peak_depth), ("peak_speed", self.peak_speed)):
+            f = fem.Function(self._V, name=name)
+            f.x.array[: values.size] = values
+            f.x.scatter_forward()
+            out.append(f)
+        return out[0], out[1]
+
+    def gathered(self) -> dict[str, np.ndarray] | None:
+        """Gather the envelopes to rank 0 (see :func:`gather_nodal`; collective).
+
+        Returns:
+            On rank 0 ``x``, ``y``, ``peak_depth``, ``peak_speed``; ``None`` elsewhere.
+
+        Raises:
+            RuntimeError: If called before :meth:`start`.
+        """
+        if self._V is None:
+            raise RuntimeError("PeakTracker.gathered() called before start()")
+        return gather_nodal(self._V, {"peak_depth": self.peak_depth, "peak_speed": self.peak_speed})
+
+    def start(self, solver: Solver, info: StepInfo) -> None:
+        """Initialise the envelopes with the initial state."""
+        self._V = solver.V
+        n = solver.V.dofmap.index_map.size_local
+        self.peak_depth = np.full(n, -np.inf)
+        self.peak_speed = np.zeros(n)
+        self._update(solver)
+
+    def step(self, solver: Solver, info: StepInfo) -> None:
+        """Fold the new state into the envelopes."""
+        self._update(solver)
+
+    def output(self, solver: Solver, info: StepInfo) -> None:
+        """Nothing to do at output times."""
+
+    def finish(self, solver: Solver, info: StepInfo) -> None:
+        """Write ``peaks.bp`` (collective)."""
+        if self.out_dir is None:
+            return
+        if solver.comm.rank == 0:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        solver.comm.barrier()
+        peak_depth, peak_speed = self.functions()
+        writer = io.VTXWriter(
+            solver.comm, self.out_dir / "peaks.bp", [peak_depth, peak_speed], engine=self.engine
+        )
+        try:
+            writer.write(info.t)
+        finally:
+            writer.close()

@@ -1,0 +1,101 @@
+"""UFL forms of the TG2-PC transport step (seed §3.1, eqs. 9–12), compiled once per run.
+
+Predictor (eq. 10, first line), into DG0 with the exact DG0 mass ``|K|``:
+
+    |K| Q_K^{n+1/2} = ∫_K Q^n - dt/2 ∫_K (∇·F(Q^n) + B(Q^n) ∇Z)
+
+The pressure and bed terms are written together as ``g h ∇η̃`` (``∇(g h²/2) + g h ∇Z``), with
+``η̃`` the per-cell free surface of :func:`~fem_runout.tg2.low_order.reconstructed_surface`, so a
+lake at rest is exact even in cells where the shore cuts through.
+
+Corrector (eq. 10, second line), tested with discontinuous Q1 functions ``ψ`` so that the
+assembled vector holds the element contributions per cell and node — the arrays the FCT limiter
+works on:
+
+    A_H[K, i] = dt (F(Q_K^{n+1/2}), ∇ψ_i)_K
+              - dt Σ_{e ∈ ∂K} ∫_e g h̄_e (η_- - η_+) n_+ · ½(ψ_i^+ + ψ_i^-) ds
+
+The edge term is the path-conservative integral of the non-conservative product (eqs. 11–12,
+linear path ``Ψ(s)``, exact trapezoidal/midpoint rule): ``∫_0^1 g h(Ψ(s)) ∂_s Z ds = g h̄ [Z]``,
+joined with the jump of the conservative pressure ``[g h²/2] = g h̄ [h]`` of the DG0 states, which
+gives ``g h̄ [η]``; zero for a lake at rest (Prop. 3.1). A dry cell whose bed stands above the
+neighbour's surface is given that surface (it pushes nothing). Each edge term is shared equally
+by the two cells. Boundary fluxes are added nodally by the solver.
+"""
+
+from __future__ import annotations
+
+import ufl
+from dolfinx import fem
+
+
+def predictor_form(
+    state: tuple[fem.Function, fem.Function, fem.Function],
+    velocity: tuple[fem.Function, fem.Function],
+    eta_cell: fem.Function,
+    W0: fem.FunctionSpace,
+    dt: fem.Constant,
+    g: fem.Constant,
+) -> fem.Form:
+    """Linear form of the DG0 predictor increment (eq. 10, first line).
+
+    The form gives ``-dt/2 ∫_K (∇·F + B∇Z)``; the solver adds the exact cell mean of the Q1 state
+    (``∫_K Q^n / |K|`` is the mean of the four nodal values on a parallelogram), which keeps the
+    increment free of the round-off of ``∫_K Q^n``.
+
+    Args:
+        state: Q1 functions h, hu, hv at t^n.
+        velocity: Q1 nodal velocity (u, v).
+        eta_cell: DQ1 free surface η̃ per cell.
+        W0: DG0 space with 3 components (h, hu, hv).
+        dt: Time step (the transport step).
+        g: Gravity.
+    """
+    h, hu, hv = state
+    q = ufl.as_vector([hu, hv])
+    u = ufl.as_vector(velocity)
+    conv = ufl.div(ufl.outer(q, u))
+    rate = ufl.as_vector(
+        [ufl.div(q), conv[0] + g * h * eta_cell.dx(0), conv[1] + g * h * eta_cell.dx(1)]
+    )
+    w = ufl.TestFunction(W0)
+    dx = ufl.dx(metadata={"quadrature_degree": 3})
+    return fem.form(ufl.inner(-0.5 * dt * rate, w) * dx)
+
+
+def corrector_form(
+    cell_state: fem.Function,
+    cell_velocity: fem.Function,
+    cell_eta: fem.Function,
+    Wd: fem.FunctionSpace,
+    dt: fem.Constant,
+    g: fem.Constant,
+    dry: fem.Constant,
+) -> fem.Form:
+    """Linear form of the high-order corrector element contributions (eqs. 10–12).
+
+    Args:
+        cell_state: DG0 (h, hu, hv) at t^{n+1/2}.
+        cell_velocity: DG0 velocity at t^{n+1/2}.
+        cell_eta: DG0 free surface ``h_K + Z̃_K``.
+        Wd: Discontinuous Q1 space with 3 components.
+        dt: Time step.
+        g: Gravity.
+        dry: Dry tolerance on h.
+    """
+    psi = ufl.TestFunction(Wd)
+    hk, qx, qy = cell_state[0], cell_state[1], cell_state[2]
+    ux, uy = cell_velocity[0], cell_velocity[1]
+    flux = ufl.as_matrix([[qx, qy], [qx * ux, qx * uy], [qy * ux, qy * uy]])
+    n = ufl.FacetNormal(Wd.mesh)
+    hp, hm = hk("+"), hk("-")
+    ep, em = cell_eta("+"), cell_eta("-")
+    em_eff = ufl.conditional(ufl.And(ufl.le(hm, dry), ufl.gt(em, ep)), ep, em)
+    ep_eff = ufl.conditional(ufl.And(ufl.le(hp, dry), ufl.gt(ep, em)), em, ep)
+    fluct = g * 0.5 * (hp + hm) * (em_eff - ep_eff)
+    psi_m = ufl.as_vector([psi[1], psi[2]])
+    dx = ufl.dx(metadata={"quadrature_degree": 1})
+    dS = ufl.dS(metadata={"quadrature_degree": 1})
+    cell = ufl.inner(flux, ufl.grad(psi)) * dx
+    edge = fluct * ufl.dot(n("+"), 0.5 * (psi_m("+") + psi_m("-"))) * dS
+    return fem.form(dt * cell - dt * edge)

@@ -1,0 +1,271 @@
+"""The TG2-PC transport operator: DG0 predictor, Q1 corrector, Rusanov low order, Zalesak FCT.
+
+One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by ``dt`` for
+``∂_t q + ∇·F(q) + B(q)∇Z = 0`` (seed eqs. 8–15):
+
+1. nodal velocity and the per-cell free surface η̃ (numba);
+2. predictor into DG0 (UFL form, eq. 10 first line);
+3. corrector element contributions A_H[K, i] (UFL form on discontinuous Q1, eqs. 10–12);
+4. low-order Rusanov element contributions A_L[K, i] (numba, :mod:`.low_order`);
+5. Zalesak factors α_K from local bounds on the free surface where wet and on h where dry,
+   and on the momenta (:mod:`.fct`); ``m_i Q^{n+1} = m_i Q^L + Σ_K α_K (A_H - A_L)[K, i]``;
+6. boundary fluxes (open: outflow with the node's own state; wall: zero normal momentum).
+"""
+
+from __future__ import annotations
+
+import basix.ufl
+import numpy as np
+from dolfinx import fem, la
+from dolfinx.fem import petsc as _petsc  # noqa: F401  (keeps PETSc initialised consistently)
+
+from fem_runout.mesh import Discretization, GhostReducer
+from fem_runout.tg2 import fct
+from fem_runout.tg2.forms import corrector_form, predictor_form
+from fem_runout.tg2.low_order import (
+    low_order_contributions,
+    outflow_capacity,
+    reconstructed_surface,
+    velocity,
+)
+
+
+class Transport:
+    """TG2-PC + FCT transport on a :class:`Discretization`.
+
+    Args:
+        disc: The discretization.
+        gravity: g [m/s²].
+        dry_tolerance: Depth under which a node counts as dry [m].
+        fct_enabled: Blend with the low-order scheme (True) or use raw TG2-PC (False).
+    """
+
+    def __init__(
+        self, disc: Discretization, gravity: float, dry_tolerance: float, fct_enabled: bool = True
+    ) -> None:
+        self.disc = disc
+        self.g = float(gravity)
+        self.tol = float(dry_tolerance)
+        self.fct_enabled = fct_enabled
+        msh, V = disc.mesh, disc.V
+        self.h, self.hu, self.hv, self.z = (fem.Function(V, name=n) for n in ("h", "hu", "hv", "z"))
+        self.ux, self.uy = fem.Function(V), fem.Function(V)
+        W0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(3,)))
+        U0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(2,)))
+        S0 = fem.functionspace(msh, ("DG", 0))
+        Wd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1, shape=(3,)))
+        Sd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1))
+        self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
+        self.uk, self.etak = fem.Function(U0), fem.Function(S0)
+        self.dt = fem.Constant(msh, 0.0)
+        g = fem.Constant(msh, self.g)
+        state, vel = (self.h, self.hu, self.hv), (self.ux, self.uy)
+        self.pred_form = predictor_form(state, vel, self.eta_t, W0, self.dt, g)
+        self.corr_form = corrector_form(
+            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, self.tol)
+        )
+        self.b_pred = fem.assemble_vector(self.pred_form)
+        self.b_corr = fem.assemble_vector(self.corr_form)
+        nc = disc.cell_nodes.shape[0]
+        self._dof0 = np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64)
+        self._dofs0 = np.asarray(S0.dofmap.list[:nc, 0], dtype=np.int64)
+        self._dofd = np.asarray(Wd.dofmap.list[:nc], dtype=np.int64)
+        self._dofsd = np.asarray(Sd.dofmap.list[:nc], dtype=np.int64)
+        self.reducer = GhostReducer(disc)
+        self.outflow_volume = 0.0
+        nn, no = disc.coords.shape[0], disc.n_owned_cells
+        self._lo = np.zeros((no, 4, 3))
+        self._cap = np.zeros(nn)
+        self._owned = disc.cell_nodes[:no]
+        self._cellC = disc.C[:no]
+
+    # -- state -----------------------------------------------------------------------------
+    def state(self) -> np.ndarray:
+        """(n_nodes_local, 3) copy of (h, hu, hv)."""
+        return np.stack([self.h.x.array, self.hu.x.array, self.hv.x.array], axis=1)
+
+    def set_state(self, q: np.ndarray) -> None:
+        """Set (h, hu, hv) from a (n_nodes_local, 3) array (ghosts included)."""
+        self.h.x.array[:], self.hu.x.array[:], self.hv.x.array[:] = q[:, 0], q[:, 1], q[:, 2]
+
+    # -- time step ---------------------------------------------------------------------------
+    def stable_dt(self) -> float:
+        """Largest dt for which the low-order update keeps h >= 0 (CFL number 1)."""
+        d = self.disc
+        h, z = self.h.x.array, self.z.x.array
+        velocity(h, self.hu.x.array, self.hv.x.array, self.tol, self.ux.x.array, self.uy.x.array)
+        self._cap[:] = 0.0
+        outflow_capacity(self._owned, self._cellC, h, z, self.ux.x.array, self.uy.x.array,
+                         self.g, self._cap)
+        cap = d.nodal_sum(self._cap)
+        for side in d.sides:
+            if side.kind == "open":
+                un = self.ux.x.array[side.nodes] * side.normal[0] + (
+                    self.uy.x.array[side.nodes] * side.normal[1])
+                cap[side.nodes] += side.weight * np.maximum(un, 0.0)
+        own = slice(0, d.n_owned_nodes)
+        ratio = np.where(cap[own] > 0.0, d.lumped_mass[own] / np.where(cap[own] > 0, cap[own], 1),
+                         np.inf)
+        local = float(ratio.min()) if ratio.size else np.inf
+        from mpi4py import MPI
+
+        return d.comm.allreduce(local, op=MPI.MIN)
+
+    def step(self, dt: float) -> None:
+        """Advance (h, hu, hv) by ``dt``."""
+        d = self.disc
+        self.dt.value = dt
+        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        velocity(h, hu, hv, self.tol, self.ux.x.array, self.uy.x.array)
+        eta_t = self.eta_t.x.array.reshape(-1)
+        cell_eta = np.empty((d.cell_nodes.shape[0], 4))
+        reconstructed_surface(d.cell_nodes, h, z, self.tol, cell_eta)
+        eta_t[self._dofsd] = cell_eta
+        high = self._high_order(cell_eta)
+        q0 = self.state()
+        low_rate = self._low_order_rates(h, hu, hv, z)
+        q_low = q0 + dt * low_rate
+        if self.fct_enabled:
+            aec = high - dt * self._lo
+            alpha = self._limit(q0, q_low, aec)
+            corr = np.zeros_like(q0)
+            fct.scatter_cells(self._owned, aec, alpha, corr)
+            q_new = q_low + d.nodal_sum(corr) / d.lumped_mass[:, None]
+        else:
+            corr = np.zeros_like(q0)
+            fct.scatter_cells(self._owned, high - dt * self._lo, np.ones(len(self._owned)), corr)
+            q_new = q_low + d.nodal_sum(corr) / d.lumped_mass[:, None]
+        self._finalise(q_new)
+        self.set_state(q_new)
+
+    # -- pieces ------------------------------------------------------------------------------
+    def _high_order(self, cell_eta: np.ndarray) -> np.ndarray:
+        """Predictor (DG0) then corrector element contributions A_H (owned cells, × dt)."""
+        d = self.disc
+        b = self.b_pred
+        b.array[:] = 0.0
+        fem.assemble_vector(b.array, self.pred_form)
+        Qk = self.Qk.x.array.reshape(-1, 3)
+        Qk[self._dof0] = b.array.reshape(-1, 3)[self._dof0] / d.cell_area[:, None]
+        self.Qk.x.scatter_forward()
+        delta = Qk[self._dof0].copy()
+        nodal = np.stack([self.h.x.array, self.hu.x.array, self.hv.x.array], axis=1)
+        vals = nodal[d.cell_nodes].mean(axis=1) + delta
+        Qk[self._dof0] = vals
+        hk = vals[:, 0]
+        self.etak.x.array[self._dofs0] = cell_eta.mean(axis=1) + delta[:, 0]
+        wet = hk > self.tol
+        uk = self.uk.x.array.reshape(-1, 2)
+        uk[self._dof0] = 0.0
+        uk[self._dof0[wet]] = vals[wet, 1:] / hk[wet, None]
+        b = self.b_corr
+        b.array[:] = 0.0
+        fem.assemble_vector(b.array, self.corr_form)
+        b.scatter_reverse(la.InsertMode.add)
+        return b.array.reshape(-1, 3)[self._dofd[: d.n_owned_cells]]
+
+    def _low_order_rates(self, h, hu, hv, z) -> np.ndarray:
+        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i; keeps A_L in self._lo."""
+        d = self.disc
+        low_order_contributions(self._owned, self._cellC, h, hu, hv, z, self.ux.x.array,
+                                self.uy.x.array, self.g, self.tol, self._lo)
+        acc = np.zeros((h.shape[0], 3))
+        fct.scatter_cells(self._owned, self._lo, np.ones(len(self._owned)), acc)
+        acc = d.nodal_sum(acc)
+        acc += self._boundary_flux(h, hu, hv)
+        return acc / d.lumped_mass[:, None]
+
+    def _boundary_flux(self, h, hu, hv) -> np.ndarray:
+        """Open sides: ``-w_i F(U_i)·n``; walls take nothing through (rates per node)."""
+        flux = np.zeros((h.shape[0], 3))
+        ux, uy = self.ux.x.array, self.uy.x.array
+        for side in self.disc.sides:
+            if side.kind != "open":
+                continue
+            i = side.nodes
+            un = ux[i] * side.normal[0] + uy[i] * side.normal[1]
+            w = side.weight
+            flux[i, 0] -= w * h[i] * un
+            flux[i, 1] -= w * hu[i] * un
+            flux[i, 2] -= w * hv[i] * un
+        return flux
+
+    def _limit(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray) -> np.ndarray:
+        """Zalesak factors α_K for every owned cell (collective)."""
+        d = self.disc
+        z = self.z.x.array
+        m = d.lumped_mass
+        nn = q0.shape[0]
+        sums = np.zeros((nn, 6))
+        for c in range(3):
+            p, n = np.zeros(nn), np.zeros(nn)
+            fct.antidiffusive_sums(self._owned, np.ascontiguousarray(aec[:, :, c]), p, n)
+            sums[:, 2 * c], sums[:, 2 * c + 1] = p, n
+        sums = d.nodal_sum(sums)
+        upper, lower = self._bounds(q0, q_low, z)
+        alpha = np.ones(len(self._owned))
+        ratios = np.empty((nn, 6))
+        for c in range(3):
+            rp, rm = fct.zalesak_ratios(sums[:, 2 * c], sums[:, 2 * c + 1],
+                                        m * (upper[:, c] - q_low[:, c]),
+                                        m * (lower[:, c] - q_low[:, c]))
+            ratios[:, 2 * c], ratios[:, 2 * c + 1] = rp, rm
+        d.update_ghosts(ratios)
+        for c in range(3):
+            fct.cell_factors(self._owned, np.ascontiguousarray(aec[:, :, c]),
+                             np.ascontiguousarray(ratios[:, 2 * c]),
+                             np.ascontiguousarray(ratios[:, 2 * c + 1]), alpha)
+        return alpha
+
+    def _bounds(self, q0, q_low, z) -> tuple[np.ndarray, np.ndarray]:
+        """Local bounds: free surface where wet, depth where dry, and momenta (patch extrema)."""
+        d, cells = self.disc, d_cells(self.disc)
+        nn = q0.shape[0]
+        hi = np.full((nn, 4), -np.inf)
+        lo = np.full((nn, 4), np.inf)
+        wet0, wetl = q0[:, 0] > self.tol, q_low[:, 0] > self.tol
+        everyone = np.ones(nn, dtype=np.bool_)
+        for vals, mask in ((q0[:, 0] + z, wet0), (q_low[:, 0] + z, wetl)):
+            fct.patch_extrema(cells, vals, mask, hi[:, 0], lo[:, 0])
+        for c, col in ((1, 0), (2, 1), (3, 2)):
+            src = (q0[:, col], q_low[:, col]) if c > 1 else (q0[:, 0], q_low[:, 0])
+            for vals in src:
+                fct.patch_extrema(cells, np.ascontiguousarray(vals), everyone, hi[:, c], lo[:, c])
+        for c in range(4):
+            self.reducer.reduce(hi[:, c], "max")
+            self.reducer.reduce(lo[:, c], "min")
+        upper, lower = np.empty((nn, 3)), np.empty((nn, 3))
+        upper[:, 0] = np.where(wetl, hi[:, 0] - z, hi[:, 1])
+        lower[:, 0] = np.where(wetl, np.maximum(lo[:, 0] - z, 0.0), 0.0)
+        upper[:, 0] = np.maximum(upper[:, 0], q_low[:, 0])
+        lower[:, 0] = np.minimum(lower[:, 0], q_low[:, 0])
+        upper[:, 1:], lower[:, 1:] = hi[:, 2:], lo[:, 2:]
+        return upper, lower
+
+    def _finalise(self, q: np.ndarray) -> None:
+        """Walls: zero normal momentum; dry nodes: zero momentum; outflow bookkeeping."""
+        d = self.disc
+        for side in d.sides:
+            if side.kind == "wall":
+                q[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
+        # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
+        # so that the runner stops with a message
+        hmax = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
+        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
+        q[tiny, 0] = 0.0
+        dry = q[:, 0] <= self.tol
+        q[dry, 1:] = 0.0
+        out = 0.0
+        h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
+        for side in d.sides:
+            if side.kind == "open":
+                own = side.nodes < d.n_owned_nodes
+                i = side.nodes[own]
+                un = ux[i] * side.normal[0] + uy[i] * side.normal[1]
+                out += float(np.sum(side.weight[own] * h[i] * un))
+        self.outflow_volume += float(self.dt.value) * d.comm.allreduce(out)
+
+
+def d_cells(disc: Discretization) -> np.ndarray:
+    """All local cells (owned and ghost): the patch of an owned node may include ghost cells."""
+    return disc.cell_nodes
