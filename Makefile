@@ -29,7 +29,7 @@ demo: setup
 test: setup
 	@status=0; \
 	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests || status=1; \
-	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x -m "not serial_only" tests/mpi || status=1; \
+	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
 	exit $$status
 
 lint: setup

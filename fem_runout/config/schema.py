@@ -327,9 +327,14 @@ class OutputSpec(_Spec):
 
 
 class NumericsSpec(_Spec):
-    """Wet/dry threshold [m] and flux-corrected transport switch."""
+    """Wet/dry threshold [m], thin-layer depth [m] and flux-corrected transport switch.
+
+    ``thin_depth`` is the depth under which velocities are desingularised,
+    ``u = 2 h q / (h² + max(h, thin_depth)²)``; None means 1e-4 × the largest initial depth.
+    """
 
     dry_tolerance: Real = Field(1e-6, gt=0)
+    thin_depth: Real | None = Field(None, gt=0)
     fct: Bool = True
 
 

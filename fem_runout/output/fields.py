@@ -1,4 +1,4 @@
-"""Field output for ParaView (VTX/ADIOS2 ``.bp``) and a minimal reader of what it writes."""
+"""Field output for ParaView (VTX/ADIOS2 ``.bp`` and VTK ``.pvd``) and a reader of the ``.bp``."""
 
 from __future__ import annotations
 
@@ -31,10 +31,19 @@ class FieldWriter:
     "ADIOS2VTXReader" opens) holds all fields on the Q1 nodes; ``velocity`` is a 2-vector
     (padded to 3 components in the file), ``(hu, hv) / h`` where ``h > threshold`` and 0
     elsewhere; ``eta = h + z`` is the free surface. The mesh is written once (it is static).
+
+    With ``pvd=True`` (the default) the same fields are also written to ``out_dir/fields.pvd``
+    (a VTK collection of ``.vtu``/``.pvtu`` files, one per output time), which ParaView and
+    pyvista (``pyvista.get_reader``) open without ADIOS2 support.
     """
 
     def __init__(
-        self, out_dir: str | Path, solver: Solver, threshold: float = 1e-6, engine: str = "BP4"
+        self,
+        out_dir: str | Path,
+        solver: Solver,
+        threshold: float = 1e-6,
+        engine: str = "BP4",
+        pvd: bool = True,
     ) -> None:
         """Create the output functions (the file is opened at :meth:`start`).
 
@@ -43,11 +52,13 @@ class FieldWriter:
             solver: The solver whose fields are written.
             threshold: Dry threshold [m] for the velocity.
             engine: ADIOS2 engine (``"BP4"`` or ``"BP5"``).
+            pvd: Also write the VTK companion ``fields.pvd``.
         """
         self.out_dir = Path(out_dir)
         self.path = self.out_dir / "fields.bp"
         self.threshold = float(threshold)
         self.engine = engine
+        self.pvd_path: Path | None = self.out_dir / "fields.pvd" if pvd else None
         V = solver.V
         W = fem.functionspace(V.mesh, ("Lagrange", 1, (V.mesh.geometry.dim,)))
         self.velocity = fem.Function(W, name="velocity")
@@ -64,6 +75,7 @@ class FieldWriter:
         ]
         self._node_of = _matching_nodes(V, W)
         self._writer: io.VTXWriter | None = None
+        self._pvd: io.VTKFile | None = None
         self.times: list[float] = []
 
     def update(self, solver: Solver) -> None:
@@ -83,7 +95,7 @@ class FieldWriter:
         self.eta.x.array[:] = h + z
 
     def start(self, solver: Solver, info: StepInfo) -> None:
-        """Open ``fields.bp`` (collective)."""
+        """Open ``fields.bp`` and ``fields.pvd`` (collective)."""
         if solver.comm.rank == 0:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         solver.comm.barrier()
@@ -94,6 +106,8 @@ class FieldWriter:
             engine=self.engine,
             mesh_policy=io.VTXMeshPolicy.reuse,
         )
+        if self.pvd_path is not None:
+            self._pvd = io.VTKFile(solver.comm, self.pvd_path, "w")
 
     def step(self, solver: Solver, info: StepInfo) -> None:
         """Nothing to do after a step."""
@@ -104,13 +118,18 @@ class FieldWriter:
             raise RuntimeError("FieldWriter.output() called before start()")
         self.update(solver)
         self._writer.write(info.t)
+        if self._pvd is not None:
+            self._pvd.write_function(self._functions, info.t)
         self.times.append(info.t)
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
-        """Close the file (collective)."""
+        """Close the files (collective)."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        if self._pvd is not None:
+            self._pvd.close()
+            self._pvd = None
 
 
 def _matching_nodes(V: fem.FunctionSpace, W: fem.FunctionSpace) -> np.ndarray:

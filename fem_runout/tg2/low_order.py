@@ -24,100 +24,107 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def nodal_velocity(h, qx, qy, tol, ux, uy):  # noqa: D103 - documented in velocity()
+def nodal_velocity(h, qx, qy, tol, kappa, ux, uy):  # noqa: D103 - documented in velocity()
     for i in range(h.shape[0]):
         if h[i] > tol:
-            ux[i] = qx[i] / h[i]
-            uy[i] = qy[i] / h[i]
+            hk = max(h[i], kappa)
+            f = 2.0 * h[i] / (h[i] * h[i] + hk * hk)
+            ux[i] = qx[i] * f
+            uy[i] = qy[i] * f
         else:
             ux[i] = 0.0
             uy[i] = 0.0
 
 
-def velocity(h: np.ndarray, qx: np.ndarray, qy: np.ndarray, tol: float, ux, uy) -> None:
-    """Nodal velocity ``q / h`` where ``h > tol``, zero on dry nodes (written into ux, uy)."""
-    nodal_velocity(h, qx, qy, tol, ux, uy)
+def velocity(h, qx, qy, tol: float, kappa: float, ux, uy) -> None:
+    """Nodal velocity, desingularised: ``u = 2 h q / (h² + max(h, κ)²)`` (= q/h for h >= κ).
+
+    Zero on dry nodes (``h <= tol``). Written into ``ux``, ``uy``. Kurganov & Petrova (2007):
+    a draining layer keeps a bounded velocity instead of ``q / h → ∞``.
+    """
+    nodal_velocity(h, qx, qy, tol, kappa, ux, uy)
+
+
+PAIRS = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
+
+
+def pair_coefficients(C: np.ndarray) -> np.ndarray:
+    """``β_ab`` = antisymmetric part of ``∫_K φ_a ∇φ_b`` for the 6 node pairs of each cell.
+
+    Args:
+        C: (n, 4, 4, 2) cell integrals.
+
+    Returns:
+        (n, 6, 2) array in the order of :data:`PAIRS`.
+    """
+    a, b = PAIRS[:, 0], PAIRS[:, 1]
+    return np.ascontiguousarray(0.5 * (C[:, a, b, :] - C[:, b, a, :]))
 
 
 @numba.njit(cache=True)
-def _pair(i, j, bx, by, h, z, ux, uy, g):
-    """Reconstructed depths and Rusanov viscosity of one node pair."""
-    zm = max(z[i], z[j])
-    hs_ij = max(0.0, h[i] + z[i] - zm)
-    hs_ji = max(0.0, h[j] + z[j] - zm)
-    nb = np.sqrt(bx * bx + by * by)
-    lam = 0.0
-    if nb > 0.0:
-        un_i = abs(ux[i] * bx + uy[i] * by) / nb
-        un_j = abs(ux[j] * bx + uy[j] * by) / nb
-        lam = max(un_i + np.sqrt(g * max(h[i], 0.0)), un_j + np.sqrt(g * max(h[j], 0.0)))
-    return hs_ij, hs_ji, lam * nb
+def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
+    """Low-order rates per cell and node, and the time-step capacity per node, in one pass.
 
-
-@numba.njit(cache=True)
-def low_order_contributions(cells, C, h, qx, qy, z, ux, uy, g, tol, out):
-    """Fill ``out[K, i, :]`` with the low-order rates (mass, x-, y-momentum) of cell K.
+    Every unordered pair is visited once: its mass and momentum fluxes are antisymmetric
+    (``β_ba = -β_ab``, ``d_ab = d_ba``), so node a receives ``+F`` and node b ``-F``.
 
     Args:
         cells: (n, 4) local node indices of the cells to process.
-        C: (n, 4, 4, 2) ``∫_K φ_i ∇φ_j``.
-        h, qx, qy, z: Nodal depth, momenta and elevation (local, ghosts up to date).
+        beta: (n, 6, 2) pair coefficients (:func:`pair_coefficients`).
+        C: (n, 4, 4, 2) ``∫_K φ_i ∇φ_j`` (for the pressure term).
+        h, qx, qy, z: Nodal depth, momenta and elevation (ghosts up to date).
         ux, uy: Nodal velocity (see :func:`velocity`).
         g: Gravity.
         tol: Dry tolerance on h.
-        out: (n, 4, 3) output rates (not yet multiplied by dt).
+        out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
+        cap: (n_nodes,) ``Σ_j (d_ij + |β_ij·u_i|)`` is added here.
     """
     for k in range(cells.shape[0]):
         nodes = cells[k]
         for a in range(4):
             i = nodes[a]
             eta_i = h[i] + z[i]
-            m0 = 0.0
-            m1 = 0.0
-            m2 = 0.0
             p1 = 0.0
             p2 = 0.0
             for b in range(4):
+                if b == a:
+                    continue
                 j = nodes[b]
                 eta_hat = h[j] + z[j]
                 if h[j] <= tol:
                     eta_hat = h[j] + min(z[j], eta_i)
                 p1 += (eta_hat - eta_i) * C[k, a, b, 0]
                 p2 += (eta_hat - eta_i) * C[k, a, b, 1]
-                if b == a:
-                    continue
-                bx = 0.5 * (C[k, a, b, 0] - C[k, b, a, 0])
-                by = 0.5 * (C[k, a, b, 1] - C[k, b, a, 1])
-                hs_ij, hs_ji, d = _pair(i, j, bx, by, h, z, ux, uy, g)
-                bu_i = bx * ux[i] + by * uy[i]
-                bu_j = bx * ux[j] + by * uy[j]
-                m0 += -(hs_ij * bu_i + hs_ji * bu_j) + d * (hs_ji - hs_ij)
-                m1 += -bu_i * hs_ij * ux[i] - bu_j * hs_ji * ux[j] + d * (
-                    hs_ji * ux[j] - hs_ij * ux[i])
-                m2 += -bu_i * hs_ij * uy[i] - bu_j * hs_ji * uy[j] + d * (
-                    hs_ji * uy[j] - hs_ij * uy[i])
-            out[k, a, 0] = m0
-            out[k, a, 1] = m1 - g * h[i] * p1
-            out[k, a, 2] = m2 - g * h[i] * p2
-
-
-@numba.njit(cache=True)
-def outflow_capacity(cells, C, h, z, ux, uy, g, out):
-    """Accumulate ``Σ_j (d_ij + |β_ij·u_i|)`` per node into ``out`` (for the time step)."""
-    for k in range(cells.shape[0]):
-        nodes = cells[k]
-        for a in range(4):
+            out[k, a, 0] = 0.0
+            out[k, a, 1] = -g * h[i] * p1
+            out[k, a, 2] = -g * h[i] * p2
+        for p in range(6):
+            a = PAIRS[p, 0]
+            b = PAIRS[p, 1]
             i = nodes[a]
-            s = 0.0
-            for b in range(4):
-                if b == a:
-                    continue
-                j = nodes[b]
-                bx = 0.5 * (C[k, a, b, 0] - C[k, b, a, 0])
-                by = 0.5 * (C[k, a, b, 1] - C[k, b, a, 1])
-                _, _, d = _pair(i, j, bx, by, h, z, ux, uy, g)
-                s += d + abs(bx * ux[i] + by * uy[i])
-            out[i] += s
+            j = nodes[b]
+            bx = beta[k, p, 0]
+            by = beta[k, p, 1]
+            zm = max(z[i], z[j])
+            hs_ij = max(0.0, h[i] + z[i] - zm)
+            hs_ji = max(0.0, h[j] + z[j] - zm)
+            nb = np.sqrt(bx * bx + by * by)
+            bu_i = bx * ux[i] + by * uy[i]
+            bu_j = bx * ux[j] + by * uy[j]
+            c_i = np.sqrt(g * max(h[i], 0.0))
+            c_j = np.sqrt(g * max(h[j], 0.0))
+            d = max(abs(bu_i) + c_i * nb, abs(bu_j) + c_j * nb)
+            fm = -(hs_ij * bu_i + hs_ji * bu_j) + d * (hs_ji - hs_ij)
+            fx = -bu_i * hs_ij * ux[i] - bu_j * hs_ji * ux[j] + d * (hs_ji * ux[j] - hs_ij * ux[i])
+            fy = -bu_i * hs_ij * uy[i] - bu_j * hs_ji * uy[j] + d * (hs_ji * uy[j] - hs_ij * uy[i])
+            out[k, a, 0] += fm
+            out[k, a, 1] += fx
+            out[k, a, 2] += fy
+            out[k, b, 0] -= fm
+            out[k, b, 1] -= fx
+            out[k, b, 2] -= fy
+            cap[i] += d + abs(bu_i)
+            cap[j] += d + abs(bu_j)
 
 
 @numba.njit(cache=True)

@@ -7,8 +7,8 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
 2. predictor into DG0 (UFL form, eq. 10 first line);
 3. corrector element contributions A_H[K, i] (UFL form on discontinuous Q1, eqs. 10–12);
 4. low-order Rusanov element contributions A_L[K, i] (numba, :mod:`.low_order`);
-5. Zalesak factors α_K from local bounds on the free surface where wet and on h where dry,
-   and on the momenta (:mod:`.fct`); ``m_i Q^{n+1} = m_i Q^L + Σ_K α_K (A_H - A_L)[K, i]``;
+5. Zalesak factors α_K from local bounds on the free surface where wet and on h where dry
+   (:mod:`.fct`); ``m_i Q^{n+1} = m_i Q^L + Σ_K α_K (A_H - A_L)[K, i]``;
 6. boundary fluxes (open: outflow with the node's own state; wall: zero normal momentum).
 """
 
@@ -23,8 +23,8 @@ from fem_runout.mesh import Discretization, GhostReducer
 from fem_runout.tg2 import fct
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.low_order import (
-    low_order_contributions,
-    outflow_capacity,
+    low_order_pass,
+    pair_coefficients,
     reconstructed_surface,
     velocity,
 )
@@ -37,15 +37,22 @@ class Transport:
         disc: The discretization.
         gravity: g [m/s²].
         dry_tolerance: Depth under which a node counts as dry [m].
+        thin_depth: Depth κ under which velocities are desingularised [m].
         fct_enabled: Blend with the low-order scheme (True) or use raw TG2-PC (False).
     """
 
     def __init__(
-        self, disc: Discretization, gravity: float, dry_tolerance: float, fct_enabled: bool = True
+        self,
+        disc: Discretization,
+        gravity: float,
+        dry_tolerance: float,
+        thin_depth: float,
+        fct_enabled: bool = True,
     ) -> None:
         self.disc = disc
         self.g = float(gravity)
         self.tol = float(dry_tolerance)
+        self.kappa = max(float(thin_depth), self.tol)
         self.fct_enabled = fct_enabled
         msh, V = disc.mesh, disc.V
         self.h, self.hu, self.hv, self.z = (fem.Function(V, name=n) for n in ("h", "hu", "hv", "z"))
@@ -77,7 +84,9 @@ class Transport:
         self._lo = np.zeros((no, 4, 3))
         self._cap = np.zeros(nn)
         self._owned = disc.cell_nodes[:no]
-        self._cellC = disc.C[:no]
+        self._cellC = np.ascontiguousarray(disc.C[:no])
+        self._beta = pair_coefficients(self._cellC)
+        self._fresh = False  # low-order rates of the current state are in self._lo
 
     # -- state -----------------------------------------------------------------------------
     def state(self) -> np.ndarray:
@@ -87,43 +96,55 @@ class Transport:
     def set_state(self, q: np.ndarray) -> None:
         """Set (h, hu, hv) from a (n_nodes_local, 3) array (ghosts included)."""
         self.h.x.array[:], self.hu.x.array[:], self.hv.x.array[:] = q[:, 0], q[:, 1], q[:, 2]
+        self._fresh = False
 
     # -- time step ---------------------------------------------------------------------------
     def stable_dt(self) -> float:
-        """Largest dt for which the low-order update keeps h >= 0 (CFL number 1)."""
-        d = self.disc
-        h, z = self.h.x.array, self.z.x.array
-        velocity(h, self.hu.x.array, self.hv.x.array, self.tol, self.ux.x.array, self.uy.x.array)
-        self._cap[:] = 0.0
-        outflow_capacity(self._owned, self._cellC, h, z, self.ux.x.array, self.uy.x.array,
-                         self.g, self._cap)
-        cap = d.nodal_sum(self._cap)
-        for side in d.sides:
-            if side.kind == "open":
-                un = self.ux.x.array[side.nodes] * side.normal[0] + (
-                    self.uy.x.array[side.nodes] * side.normal[1])
-                cap[side.nodes] += side.weight * np.maximum(un, 0.0)
-        own = slice(0, d.n_owned_nodes)
-        ratio = np.where(cap[own] > 0.0, d.lumped_mass[own] / np.where(cap[own] > 0, cap[own], 1),
-                         np.inf)
-        local = float(ratio.min()) if ratio.size else np.inf
+        """Largest dt for which the low-order update keeps h >= 0 (CFL number 1).
+
+        ``dt = min_i m_i / (Σ_j (d_ij + |β_ij·u_i|) + Σ_open w_i max(u_i·n, 0))``, with the
+        eigenvalues ``|u·n| + sqrt(g h)`` of the full system in ``d_ij``. The low-order rates of
+        the same pass are kept for the next :meth:`step`.
+        """
         from mpi4py import MPI
 
+        d = self.disc
+        self._low_order_pass()
+        cap = d.nodal_sum(self._cap)
+        ux, uy = self.ux.x.array, self.uy.x.array
+        for side in d.sides:
+            if side.kind == "open":
+                un = ux[side.nodes] * side.normal[0] + uy[side.nodes] * side.normal[1]
+                cap[side.nodes] += side.weight * np.maximum(un, 0.0)
+        own = slice(0, d.n_owned_nodes)
+        c, m = cap[own], d.lumped_mass[own]
+        ratio = m[c > 0.0] / c[c > 0.0]
+        local = float(ratio.min()) if ratio.size else np.inf
         return d.comm.allreduce(local, op=MPI.MIN)
+
+    def _low_order_pass(self) -> None:
+        """Velocity, low-order rates A_L (self._lo) and capacities (self._cap) of the state."""
+        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        velocity(h, hu, hv, self.tol, self.kappa, self.ux.x.array, self.uy.x.array)
+        self._cap[:] = 0.0
+        low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
+                       self.uy.x.array, self.g, self.tol, self._lo, self._cap)
+        self._fresh = True
 
     def step(self, dt: float) -> None:
         """Advance (h, hu, hv) by ``dt``."""
         d = self.disc
         self.dt.value = dt
         h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
-        velocity(h, hu, hv, self.tol, self.ux.x.array, self.uy.x.array)
+        if not self._fresh:
+            self._low_order_pass()
         eta_t = self.eta_t.x.array.reshape(-1)
         cell_eta = np.empty((d.cell_nodes.shape[0], 4))
         reconstructed_surface(d.cell_nodes, h, z, self.tol, cell_eta)
         eta_t[self._dofsd] = cell_eta
         high = self._high_order(cell_eta)
         q0 = self.state()
-        low_rate = self._low_order_rates(h, hu, hv, z)
+        low_rate = self._low_order_rates(h, hu, hv)
         q_low = q0 + dt * low_rate
         if self.fct_enabled:
             aec = high - dt * self._lo
@@ -157,18 +178,18 @@ class Transport:
         wet = hk > self.tol
         uk = self.uk.x.array.reshape(-1, 2)
         uk[self._dof0] = 0.0
-        uk[self._dof0[wet]] = vals[wet, 1:] / hk[wet, None]
+        hw = hk[wet]
+        factor = 2.0 * hw / (hw * hw + np.maximum(hw, self.kappa) ** 2)
+        uk[self._dof0[wet]] = vals[wet, 1:] * factor[:, None]
         b = self.b_corr
         b.array[:] = 0.0
         fem.assemble_vector(b.array, self.corr_form)
         b.scatter_reverse(la.InsertMode.add)
         return b.array.reshape(-1, 3)[self._dofd[: d.n_owned_cells]]
 
-    def _low_order_rates(self, h, hu, hv, z) -> np.ndarray:
-        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i; keeps A_L in self._lo."""
+    def _low_order_rates(self, h, hu, hv) -> np.ndarray:
+        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i from self._lo."""
         d = self.disc
-        low_order_contributions(self._owned, self._cellC, h, hu, hv, z, self.ux.x.array,
-                                self.uy.x.array, self.g, self.tol, self._lo)
         acc = np.zeros((h.shape[0], 3))
         fct.scatter_cells(self._owned, self._lo, np.ones(len(self._owned)), acc)
         acc = d.nodal_sum(acc)
@@ -191,55 +212,47 @@ class Transport:
         return flux
 
     def _limit(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray) -> np.ndarray:
-        """Zalesak factors α_K for every owned cell (collective)."""
+        """Zalesak factors α_K for every owned cell (collective).
+
+        The bounds are on the well-balanced mass variable (eq. 13): the free surface η where
+        the low-order node is wet and the depth where it is dry, always with h >= 0. The same
+        α_K multiplies the momentum contributions (bounding the momenta too clips the
+        momentum peak of a dry-bed rarefaction and slows the front; see docs/method.md).
+        """
         d = self.disc
-        z = self.z.x.array
-        m = d.lumped_mass
         nn = q0.shape[0]
-        sums = np.zeros((nn, 6))
-        for c in range(3):
-            p, n = np.zeros(nn), np.zeros(nn)
-            fct.antidiffusive_sums(self._owned, np.ascontiguousarray(aec[:, :, c]), p, n)
-            sums[:, 2 * c], sums[:, 2 * c + 1] = p, n
-        sums = d.nodal_sum(sums)
-        upper, lower = self._bounds(q0, q_low, z)
-        alpha = np.ones(len(self._owned))
-        ratios = np.empty((nn, 6))
-        for c in range(3):
-            rp, rm = fct.zalesak_ratios(sums[:, 2 * c], sums[:, 2 * c + 1],
-                                        m * (upper[:, c] - q_low[:, c]),
-                                        m * (lower[:, c] - q_low[:, c]))
-            ratios[:, 2 * c], ratios[:, 2 * c + 1] = rp, rm
+        p, n = np.zeros(nn), np.zeros(nn)
+        mass_aec = np.ascontiguousarray(aec[:, :, 0])
+        fct.antidiffusive_sums(self._owned, mass_aec, p, n)
+        sums = d.nodal_sum(np.stack([p, n], axis=1))
+        upper, lower = self._bounds(q0, q_low, self.z.x.array)
+        m = d.lumped_mass
+        rp, rm = fct.zalesak_ratios(sums[:, 0], sums[:, 1], m * (upper - q_low[:, 0]),
+                                    m * (lower - q_low[:, 0]))
+        ratios = np.stack([rp, rm], axis=1)
         d.update_ghosts(ratios)
-        for c in range(3):
-            fct.cell_factors(self._owned, np.ascontiguousarray(aec[:, :, c]),
-                             np.ascontiguousarray(ratios[:, 2 * c]),
-                             np.ascontiguousarray(ratios[:, 2 * c + 1]), alpha)
+        alpha = np.ones(len(self._owned))
+        fct.cell_factors(self._owned, mass_aec, np.ascontiguousarray(ratios[:, 0]),
+                         np.ascontiguousarray(ratios[:, 1]), alpha)
         return alpha
 
     def _bounds(self, q0, q_low, z) -> tuple[np.ndarray, np.ndarray]:
-        """Local bounds: free surface where wet, depth where dry, and momenta (patch extrema)."""
-        d, cells = self.disc, d_cells(self.disc)
+        """Bounds of the depth: from the patch extrema of η (wet nodes) or of h (dry nodes)."""
+        cells = self.disc.cell_nodes
         nn = q0.shape[0]
-        hi = np.full((nn, 4), -np.inf)
-        lo = np.full((nn, 4), np.inf)
+        hi, lo = np.full((nn, 2), -np.inf), np.full((nn, 2), np.inf)
         wet0, wetl = q0[:, 0] > self.tol, q_low[:, 0] > self.tol
         everyone = np.ones(nn, dtype=np.bool_)
         for vals, mask in ((q0[:, 0] + z, wet0), (q_low[:, 0] + z, wetl)):
             fct.patch_extrema(cells, vals, mask, hi[:, 0], lo[:, 0])
-        for c, col in ((1, 0), (2, 1), (3, 2)):
-            src = (q0[:, col], q_low[:, col]) if c > 1 else (q0[:, 0], q_low[:, 0])
-            for vals in src:
-                fct.patch_extrema(cells, np.ascontiguousarray(vals), everyone, hi[:, c], lo[:, c])
-        for c in range(4):
+        for vals in (q0[:, 0], q_low[:, 0]):
+            fct.patch_extrema(cells, np.ascontiguousarray(vals), everyone, hi[:, 1], lo[:, 1])
+        for c in range(2):
             self.reducer.reduce(hi[:, c], "max")
             self.reducer.reduce(lo[:, c], "min")
-        upper, lower = np.empty((nn, 3)), np.empty((nn, 3))
-        upper[:, 0] = np.where(wetl, hi[:, 0] - z, hi[:, 1])
-        lower[:, 0] = np.where(wetl, np.maximum(lo[:, 0] - z, 0.0), 0.0)
-        upper[:, 0] = np.maximum(upper[:, 0], q_low[:, 0])
-        lower[:, 0] = np.minimum(lower[:, 0], q_low[:, 0])
-        upper[:, 1:], lower[:, 1:] = hi[:, 2:], lo[:, 2:]
+        h_low = q_low[:, 0]
+        upper = np.maximum(np.where(wetl, hi[:, 0] - z, hi[:, 1]), h_low)
+        lower = np.minimum(np.where(wetl, np.maximum(lo[:, 0] - z, 0.0), 0.0), h_low)
         return upper, lower
 
     def _finalise(self, q: np.ndarray) -> None:
@@ -255,6 +268,9 @@ class Transport:
         q[tiny, 0] = 0.0
         dry = q[:, 0] <= self.tol
         q[dry, 1:] = 0.0
+        thin = ~dry & (q[:, 0] < self.kappa)
+        ht = q[thin, 0]
+        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
         out = 0.0
         h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
         for side in d.sides:

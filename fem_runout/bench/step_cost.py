@@ -1,0 +1,302 @@
+"""TG2-PC wall time per step on an N x N mesh, serially and on 2 MPI ranks.
+
+Usage::
+
+    python -m fem_runout.bench step-cost [--cells 250] [--steps 30] [--out docs/step_cost.md]
+                                         [--ranks 1 2] [--profile]
+
+The driver does not import dolfinx. For each rank count it starts a worker,
+``python -m fem_runout.bench step-cost --worker`` (serially for 1 rank, under
+``mpiexec -n R`` otherwise), with one thread per rank. A worker builds the solver of
+``cases/hemisphere.yaml`` on an N x N mesh, takes 3 warm-up steps (numba JIT, form
+compilation), then times ``--steps`` calls of ``advance(0.9 * stable_dt())`` (``stable_dt``
+included) and prints, on rank 0, one ``STEP_COST_RESULT {json}`` line: the maximum over ranks
+of the mean wall time per step. The driver writes the markdown table to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import datetime
+import io
+import json
+import os
+import platform
+import pstats
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+__all__ = ["HELP", "add_arguments", "format_report", "machine_info", "main", "measure"]
+
+HELP = "TG2-PC wall time per step on an N x N mesh (serial and 2 MPI ranks)"
+RESULT_TAG = "STEP_COST_RESULT "
+WARMUP_STEPS = 3
+PROFILE_TOP = 15
+DEFAULT_CASE = Path(__file__).resolve().parents[2] / "cases" / "hemisphere.yaml"
+THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``step-cost`` options to ``parser``."""
+    parser.add_argument("--cells", type=int, default=250, metavar="N", help="N x N cells (250)")
+    parser.add_argument("--steps", type=int, default=30, help="timed steps per run (30)")
+    parser.add_argument(
+        "--out", type=Path, default=Path("docs/step_cost.md"), help="markdown report to write"
+    )
+    parser.add_argument(
+        "--ranks", type=int, nargs="+", default=[1, 2], help="MPI rank counts to run (1 2)"
+    )
+    parser.add_argument(
+        "--case", type=Path, default=DEFAULT_CASE, help="case file (default cases/hemisphere.yaml)"
+    )
+    parser.add_argument(
+        "--profile", action="store_true", help="also print a cProfile top-15 of rank 0"
+    )
+    parser.add_argument(
+        "--timeout", type=float, default=1800.0, help="seconds allowed per worker (1800)"
+    )
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the driver, or a worker with ``--worker``; return the exit code."""
+    if args.cells < 1 or args.steps < 1 or any(r < 1 for r in args.ranks):
+        print("error: --cells, --steps and --ranks must be positive", file=sys.stderr)
+        return 2
+    if not args.case.is_file():
+        print(f"error: case file '{args.case}' does not exist", file=sys.stderr)
+        return 2
+    return run_worker(args) if args.worker else run_driver(args)
+
+
+# --- worker (runs under MPI, imports dolfinx) ---------------------------------------------
+
+
+def build_solver(case_path: Path, n: int, comm: Any) -> Any:
+    """Build the TG2-PC solver of ``case_path`` on an ``n`` x ``n`` mesh (collective)."""
+    from fem_runout.config import load_case
+    from fem_runout.tg2.solver import build_tg2
+
+    case = load_case(case_path, overrides=[f"domain.cells=[{n},{n}]"])
+    return build_tg2(case, comm)
+
+
+def _advance(solver: Any, steps: int) -> None:
+    for _ in range(steps):
+        solver.advance(0.9 * solver.stable_dt())
+
+
+def measure(solver: Any, steps: int, comm: Any) -> float:
+    """Maximum over ranks of the mean wall time of one step [s] (collective).
+
+    Args:
+        solver: A warmed-up solver.
+        steps: Number of timed steps.
+        comm: The solver's communicator.
+    """
+    from mpi4py import MPI
+
+    comm.barrier()
+    start = time.perf_counter()
+    _advance(solver, steps)
+    mean = (time.perf_counter() - start) / steps
+    return comm.allreduce(mean, op=MPI.MAX)
+
+
+def profile(solver: Any, steps: int, comm: Any) -> str | None:
+    """Profile ``steps`` more steps on rank 0; return the top-15 by own time (rank 0 only)."""
+    profiler = cProfile.Profile() if comm.rank == 0 else None
+    comm.barrier()
+    if profiler is not None:
+        profiler.enable()
+    _advance(solver, steps)
+    if profiler is None:
+        return None
+    profiler.disable()
+    text = io.StringIO()
+    pstats.Stats(profiler, stream=text).sort_stats("tottime").print_stats(PROFILE_TOP)
+    return text.getvalue()
+
+
+def run_worker(args: argparse.Namespace) -> int:
+    """Build, warm up, time (and optionally profile); print the result line on rank 0."""
+    from mpi4py import MPI
+
+    # isort: split
+
+    import dolfinx
+
+    comm = MPI.COMM_WORLD
+    solver = build_solver(args.case, args.cells, comm)
+    _advance(solver, WARMUP_STEPS)
+    seconds = measure(solver, args.steps, comm)
+    text = profile(solver, args.steps, comm) if args.profile else None
+    if comm.rank == 0:
+        if text is not None:
+            print(f"cProfile of rank 0 of {comm.size}, {args.steps} steps:\n{text}", flush=True)
+        result = {
+            "ranks": comm.size,
+            "n": args.cells,
+            "cells": args.cells**2,
+            "steps": args.steps,
+            "seconds_per_step": seconds,
+            "dolfinx": dolfinx.__version__,
+        }
+        print(RESULT_TAG + json.dumps(result), flush=True)
+    return 0
+
+
+# --- driver (no dolfinx) -------------------------------------------------------------------
+
+
+def _mpiexec() -> str:
+    """Return the ``mpiexec`` next to the running Python (the venv's), else the one on PATH."""
+    local = Path(sys.executable).parent / "mpiexec"
+    if local.exists():
+        return str(local)
+    found = shutil.which("mpiexec")
+    if found is None:
+        raise RuntimeError("mpiexec not found next to python or on PATH")
+    return found
+
+
+def worker_command(ranks: int, args: argparse.Namespace) -> list[str]:
+    """Return the command line of a worker on ``ranks`` ranks."""
+    command = [sys.executable, "-m", "fem_runout.bench", "step-cost", "--worker"]
+    command += ["--cells", str(args.cells), "--steps", str(args.steps)]
+    command += ["--case", str(args.case.resolve())]
+    if args.profile:
+        command.append("--profile")
+    return command if ranks == 1 else [_mpiexec(), "-n", str(ranks), *command]
+
+
+def run_one(ranks: int, args: argparse.Namespace) -> dict[str, Any]:
+    """Run a worker on ``ranks`` ranks; relay its other output; return its result.
+
+    Raises:
+        RuntimeError: If the worker fails or prints no result.
+    """
+    env = {**os.environ, **dict.fromkeys(THREAD_VARIABLES, "1")}
+    command = worker_command(ranks, args)
+    done = subprocess.run(
+        command, env=env, stdout=subprocess.PIPE, text=True, timeout=args.timeout, check=False
+    )
+    result = None
+    for line in done.stdout.splitlines():
+        if line.startswith(RESULT_TAG):
+            result = json.loads(line[len(RESULT_TAG) :])
+        else:
+            print(line)
+    if done.returncode != 0 or result is None:
+        raise RuntimeError(f"worker failed (exit {done.returncode}): {' '.join(command)}")
+    return result
+
+
+def cpu_model() -> str:
+    """Return the CPU model name (``lscpu``, then ``/proc/cpuinfo``, then ``platform``)."""
+    try:
+        lines = subprocess.run(
+            ["lscpu"],
+            capture_output=True,
+            text=True,
+            check=False,
+            timeout=10,
+            env={**os.environ, "LC_ALL": "C"},
+        ).stdout.splitlines()
+    except (OSError, subprocess.SubprocessError):
+        lines = []
+    try:
+        lines += Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        pass
+    for line in lines:
+        key, _, value = line.partition(":")
+        if key.strip().lower() in ("model name", "model name:") and value.strip():
+            return value.strip()
+    return platform.processor() or platform.machine() or "unknown"
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU model, cores available to this process, date, Python and OS."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        cores = os.cpu_count() or 0
+    return {
+        "cpu": cpu_model(),
+        "cores": cores,
+        "date": datetime.date.today().isoformat(),
+        "python": platform.python_version(),
+        "system": f"{platform.system()} {platform.machine()}",
+    }
+
+
+def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: str) -> str:
+    """Return the markdown report: the table, then the machine and how it was measured."""
+    n, steps = results[0]["n"], results[0]["steps"]
+    rows = [
+        "| ranks | cells | ms/step | µs/cell/step |",
+        "|------:|------:|--------:|-------------:|",
+    ]
+    for r in results:
+        ms, us = 1e3 * r["seconds_per_step"], 1e6 * r["seconds_per_step"] / r["cells"]
+        rows.append(f"| {r['ranks']} | {r['cells']} | {ms:.1f} | {us:.3f} |")
+    ranks = " ".join(str(r["ranks"]) for r in results)
+    return "\n".join(
+        [
+            "# TG2-PC cost per time step",
+            "",
+            *rows,
+            "",
+            f"Machine: {machine['cpu']}, {machine['cores']} cores available, {machine['system']}; "
+            f"date {machine['date']}; DOLFINx {results[0]['dolfinx']}, Python {machine['python']}; "
+            "one thread per rank.",
+            "",
+            "## How it is measured",
+            "",
+            f"Case `{case}` on a {n} x {n} mesh ({n * n} cells). Each rank count runs in a fresh "
+            f"process (`mpiexec -n R` for R > 1): build the solver, {WARMUP_STEPS} warm-up steps "
+            f"(numba JIT, form compilation), then {steps} timed calls of "
+            "`solver.advance(0.9 * solver.stable_dt())`, `stable_dt` included, no output. "
+            "ms/step is the maximum over ranks of the mean wall time per step; µs/cell/step is "
+            "that time divided by the total number of cells (not per rank).",
+            "",
+            "Reproduce (add `--profile` for a cProfile top-15 of rank 0):",
+            "",
+            "```bash",
+            f".venv/bin/python -m fem_runout.bench step-cost --cells {n} --steps {steps} "
+            f"--ranks {ranks}",
+            "```",
+            "",
+        ]
+    )
+
+
+def _display_path(path: Path) -> str:
+    try:
+        return str(path.resolve().relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
+
+
+def run_driver(args: argparse.Namespace) -> int:
+    """Run every rank count, print and write the report."""
+    results = []
+    for ranks in args.ranks:
+        print(f"step-cost: {ranks} rank(s), {args.cells} x {args.cells} cells ...", flush=True)
+        try:
+            results.append(run_one(ranks, args))
+        except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+    report = format_report(results, machine_info(), _display_path(args.case))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(report, encoding="utf-8")
+    print(report.split("\n## ")[0].rstrip())
+    print(f"\nwritten to {args.out}")
+    return 0

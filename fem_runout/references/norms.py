@@ -1,0 +1,48 @@
+"""Discrete norms on the gathered node arrays of a structured run (sorted by (y, x))."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def nodal_weights(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Lumped Q1 mass of each node of a uniform rectangular grid (exact ``∫ φ_i``).
+
+    Args:
+        x, y: Node coordinates of the whole grid.
+    """
+    def weights_1d(v: np.ndarray) -> np.ndarray:
+        u = np.unique(np.round(v, 9))
+        dv = np.diff(u)
+        w = np.zeros_like(u)
+        w[:-1] += 0.5 * dv
+        w[1:] += 0.5 * dv
+        return w[np.searchsorted(u, np.round(v, 9))]
+
+    return weights_1d(x) * weights_1d(y)
+
+
+def l1(values: np.ndarray, weights: np.ndarray) -> float:
+    """``Σ_i m_i |v_i|`` (the L1 norm over the domain, lumped quadrature)."""
+    return float(np.sum(weights * np.abs(values)))
+
+
+def linf(values: np.ndarray) -> float:
+    """``max_i |v_i|``."""
+    return float(np.max(np.abs(values))) if values.size else 0.0
+
+
+def front_radius(x, y, h, center, threshold, direction) -> float:
+    """Largest distance from ``center`` along a ray where ``h > threshold`` (nodes on the ray).
+
+    Args:
+        x, y, h: Gathered node arrays.
+        center: (xc, yc), a node of the grid.
+        threshold: Wet threshold [m].
+        direction: Unit vector; only nodes within 1e-6 of the ray are used.
+    """
+    dx, dy = x - center[0], y - center[1]
+    along = dx * direction[0] + dy * direction[1]
+    across = np.abs(dx * direction[1] - dy * direction[0])
+    on_ray = (across < 1e-6) & (along >= 0) & (h > threshold)
+    return float(along[on_ray].max()) if on_ray.any() else 0.0

@@ -1,0 +1,110 @@
+"""One runner for every method: owns time, the output schedule, health checks and progress.
+
+The loop asks the solver for ``stable_dt()``, shortens the step to land on output times and
+the end time, calls ``advance(dt)`` and then the callbacks. It does no I/O itself.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from fem_runout.callbacks import Callback, StepInfo
+from fem_runout.errors import SimulationError
+from fem_runout.solver_api import Solver
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Time control of a run.
+
+    Attributes:
+        end: Final time [s].
+        cfl: Fraction of the solver's stable step.
+        every: Output interval [s].
+        max_steps: Stop after this many steps (None: no limit).
+        dt_max: Upper bound of the step [s] (None: no bound).
+    """
+
+    end: float
+    cfl: float
+    every: float
+    max_steps: int | None = None
+    dt_max: float | None = None
+
+
+class Runner:
+    """Drive a solver through a schedule with callbacks.
+
+    Args:
+        solver: Any object following :class:`~fem_runout.solver_api.Solver`, plus
+            ``snapshot()``, ``restore()`` and ``health()``.
+        schedule: Time control.
+        callbacks: Outputs and diagnostics, called in order.
+        progress: Optional object with ``update(info)`` and ``close()`` (rank 0 progress bar).
+    """
+
+    def __init__(
+        self, solver: Solver, schedule: Schedule, callbacks: Sequence[Callback], progress=None
+    ) -> None:
+        self.solver = solver
+        self.schedule = schedule
+        self.callbacks = list(callbacks)
+        self.progress = progress
+        self.wall_time = 0.0
+
+    def _call(self, hook: str, info: StepInfo) -> None:
+        for cb in self.callbacks:
+            getattr(cb, hook)(self.solver, info)
+
+    def run(self) -> StepInfo:
+        """Run to the end time (collective); raise SimulationError on a bad state."""
+        s, solver = self.schedule, self.solver
+        start = time.perf_counter()
+        info = StepInfo(0.0, 0.0, 0)
+        self._call("start", info)
+        self._call("output", info)
+        n_out, last_output = 1, 0.0
+        eps = 1e-12 * max(s.end, 1.0)
+        while info.t < s.end - eps and (s.max_steps is None or info.step < s.max_steps):
+            dt = self._next_dt(info.t, n_out * s.every)
+            snap = solver.snapshot()
+            solver.advance(dt)
+            problem = solver.health()
+            if problem is not None:
+                solver.restore(snap)
+                self._call("output", info)
+                self._call("finish", info)
+                raise SimulationError(
+                    f"stopped at t = {info.t:.6g} s (step {info.step + 1}): {problem}; the last "
+                    "good state was saved"
+                )
+            info = StepInfo(info.t + dt, dt, info.step + 1)
+            self._call("step", info)
+            if info.t >= n_out * s.every - eps or info.t >= s.end - eps:
+                self._call("output", info)
+                last_output = info.t
+                n_out = math.floor(info.t / s.every + 1e-9) + 1
+            if self.progress is not None:
+                self.progress.update(info)
+        self.wall_time = time.perf_counter() - start
+        if last_output != info.t:
+            self._call("output", info)
+        self._call("finish", info)
+        if self.progress is not None:
+            self.progress.close()
+        return info
+
+    def _next_dt(self, t: float, next_output: float) -> float:
+        s = self.schedule
+        dt = s.cfl * self.solver.stable_dt()
+        if s.dt_max is not None:
+            dt = min(dt, s.dt_max)
+        target = min(next_output, s.end)
+        if not math.isfinite(dt) or dt >= target - t:
+            return target - t
+        if t + 1.5 * dt > target:  # avoid a sliver step before an output time
+            return 0.5 * (target - t)
+        return dt

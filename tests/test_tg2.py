@@ -1,0 +1,131 @@
+"""TG2-PC transport: well-balancing, positivity, conservation, convergence, symmetry."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fem_runout.api import run
+from fem_runout.references.inclined_dam_break import PAPER_FRONT, exact_front
+from fem_runout.references.norms import front_radius, l1, nodal_weights
+from fem_runout.references.ritter import ritter_depth
+from fem_runout.tg2.solver import build_tg2
+from tests.tg2_helpers import case, lake_errors
+
+COMM = MPI.COMM_SELF
+
+
+def test_lake_at_rest_is_exact():
+    """Seed §4.2: three bumps, two of them dry, walls, T = 1 s: errors <= 1e-12."""
+    result = run(case("lake_at_rest"), write=False, comm=COMM)
+    errors = lake_errors(result)
+    print("lake at rest (L1, Linf):", errors)
+    assert (result.h == 0).sum() > 0, "the case must have dry bumps"
+    for name, (e1, einf) in errors.items():
+        assert e1 <= 1e-12 and einf <= 1e-12, (name, e1, einf)
+
+
+class _Watch:
+    """Callback recording min depth and volume after every step."""
+
+    def __init__(self):
+        self.min_h, self.volumes = [], []
+
+    def start(self, solver, info):
+        self.step(solver, info)
+
+    def step(self, solver, info):
+        own = slice(0, solver.disc.n_owned_nodes)
+        h = solver.fields["h"].x.array[own]
+        self.min_h.append(h.min())
+        self.volumes.append(float(np.sum(solver.lumped_mass[own] * h)))
+
+    def output(self, solver, info):
+        pass
+
+    def finish(self, solver, info):
+        pass
+
+
+def test_closed_box_conserves_mass_and_keeps_depth_non_negative():
+    """Hemisphere collapse in a walled box, run past the wall reflection."""
+    from fem_runout.runner import Runner, Schedule
+
+    c = case("hemisphere", "domain.extent=[15,35,15,35]", "domain.cells=[40,40]",
+             "domain.boundary=wall", "time.end=3.0")
+    solver = build_tg2(c, COMM)
+    watch = _Watch()
+    info = Runner(solver, Schedule(3.0, 0.9, 3.0), [watch]).run()
+    vols = np.array(watch.volumes)
+    rel = np.abs(vols - vols[0]).max() / vols[0]
+    print(f"steps {info.step}, max relative mass error {rel:.2e}, min h {min(watch.min_h):.2e}")
+    assert info.step > 50
+    assert rel <= 1e-12
+    assert min(watch.min_h) >= 0.0
+
+
+def _ritter_l1(nx: int) -> float:
+    c = case("ritter", f"domain.cells=[{nx},2]", "output.every=4.0")
+    r = run(c, write=False, comm=COMM)
+    exact = ritter_depth(r.x, 4.0, 1.0, 50.0, 9.81)
+    return l1(r.h - exact, nodal_weights(r.x, r.y)) / 2.0  # per unit width
+
+
+def test_ritter_converges():
+    errors = [_ritter_l1(nx) for nx in (100, 200, 400)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    print("Ritter L1 errors", errors, "observed orders", orders)
+    assert errors[0] > errors[1] > errors[2]
+    assert orders.min() > 0.9  # first order: the dry front limits any scheme to ~1
+    assert errors[-1] < 0.16  # m² per metre of width, at dx = 0.25 m
+
+
+def test_hemisphere_front_is_isotropic():
+    """Seed §4.1.1: front radius equal in x, y and diagonal directions within one cell."""
+    r = run(case("hemisphere"), write=False, comm=COMM)
+    dxc = 50.0 / 100
+    radii = {name: front_radius(r.x, r.y, r.h, (25.0, 25.0), 1e-3, d) for name, d in {
+        "x": (1.0, 0.0), "y": (0.0, 1.0), "-x": (-1.0, 0.0),
+        "diag": (np.sqrt(0.5), np.sqrt(0.5))}.items()}
+    print("hemisphere front radii at 1.2 s:", radii)
+    values = np.array(list(radii.values()))
+    assert values.min() > 5.0 + 2 * dxc  # it spread
+    assert values.max() - values.min() <= np.sqrt(2.0) * dxc  # one cell (diagonal spacing)
+    assert abs(radii["x"] - radii["y"]) < 1e-9 and abs(radii["x"] - radii["-x"]) < 1e-9
+
+
+@pytest.mark.slow
+def test_inclined_dam_break_front_approaches_exact_tip():
+    """Seed §4.1 at the paper's resolution (1.1e4 cells) and two finer grids."""
+    levels = [(330, 33), (660, 33), (1320, 33)]
+    fronts = {}
+    for nx, ny in levels:
+        c = case("inclined_dam_break", f"domain.cells=[{nx},{ny}]", "output.every=2.75",
+                 "time.end=8.25")
+        fronts[nx] = _fronts(c, (2.75, 5.5, 8.25))
+    for t in (2.75, 5.5, 8.25):
+        row = [fronts[nx][t] for nx, _ in levels]
+        print(f"t={t}: fronts {row} exact {exact_front(t):.1f} paper TG2(5.5 s) "
+              f"{PAPER_FRONT['tg2'][5.5]}")
+        gaps = [exact_front(t) - f for f in row]
+        assert gaps[0] > gaps[1] > gaps[2] > -1.0  # monotone approach, never past the tip
+    assert fronts[1320][5.5] > PAPER_FRONT["tg2"][5.5]
+
+
+def _fronts(c, times):
+    from fem_runout.runner import Runner, Schedule
+
+    solver = build_tg2(c, COMM)
+    found = {}
+
+    class Front:
+        def start(self, s, i): pass
+        def step(self, s, i): pass
+        def finish(self, s, i): pass
+
+        def output(self, s, i):
+            h = s.fields["h"].x.array
+            x = s.disc.coords[:, 0]
+            found[round(i.t, 6)] = float(x[h > 1e-3].max())
+
+    Runner(solver, Schedule(max(times), 0.9, times[0]), [Front()]).run()
+    return {t: found[round(t, 6)] for t in times}
