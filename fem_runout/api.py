@@ -55,7 +55,7 @@ class _Progress:
     def __init__(self, end: float, name: str) -> None:
         from tqdm import tqdm
 
-        self.bar = tqdm(total=end, desc=name, unit="s", file=sys.stderr,
+        self.bar = tqdm(total=end, desc=name, unit="s", file=sys.stderr, mininterval=1.0,
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.3g}/{total:.3g} s "
                         "[{elapsed}<{remaining}{postfix}]")
         self.t = 0.0

@@ -9,6 +9,7 @@ from fem_runout.config import Case
 from fem_runout.errors import CaseError
 from fem_runout.initial import depth_below_surface
 from fem_runout.mesh import Discretization, build_discretization
+from fem_runout.parallel import agree_on_errors
 from fem_runout.tg2.transport import Transport
 
 
@@ -44,7 +45,7 @@ class TG2Solver:
         self.transport.step(dt)
 
     def snapshot(self) -> tuple[np.ndarray, float]:
-        """A copy of the state, to restore the last good step."""
+        """Copy the state, to restore the last good step."""
         return self.transport.state(), self.transport.outflow_volume
 
     def restore(self, snap: tuple[np.ndarray, float]) -> None:
@@ -53,7 +54,7 @@ class TG2Solver:
         self.transport.outflow_volume = snap[1]
 
     def health(self) -> str | None:
-        """Collective check: a message if the state has NaN or negative depth, else None."""
+        """Check the state (collective): a message if it has NaN or negative depth, else None."""
         own = slice(0, self.disc.n_owned_nodes)
         q = self.transport.state()[own]
         local = 0
@@ -83,8 +84,12 @@ def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:
             raise CaseError(f"initial.depth: must be >= 0 everywhere, min is {h.min():g}")
     else:
         h = depth_below_surface(surface_fn(x, y), z)
-    if not (np.isfinite(z).all() and np.isfinite(h).all()):
-        raise CaseError("terrain.elevation / initial: expressions give NaN or inf at some nodes")
+    for key, values in (("terrain.elevation", z), ("initial.depth/free_surface", h)):
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise CaseError(f"{key}: the expression gives NaN or inf at {int(bad.sum())} nodes, "
+                            f"e.g. x={x[i]:g}, y={y[i]:g}; it must be finite on the whole domain")
     u_fn, v_fn = case.initial.velocity_fns()
     return {"z": z, "h": h, "hu": h * u_fn(x, y), "hv": h * v_fn(x, y)}
 
@@ -100,7 +105,7 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     disc = build_discretization(
         comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
     )
-    init = initial_fields(case, disc.coords)
+    init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     num = case.numerics
     thin = num.thin_depth
     if thin is None:
