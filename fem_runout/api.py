@@ -136,7 +136,9 @@ def run(
     peaks = PeakTracker(out, thr)
     callbacks = [recorder, peaks]
     if out is not None:
-        callbacks.insert(0, FieldWriter(out, solver, threshold=case.numerics.dry_tolerance))
+        callbacks.insert(
+            0, FieldWriter(out, solver, threshold=case.numerics.dry_tolerance, pvd=case.output.vtk)
+        )
         if case.output.pictures:
             callbacks.append(Pictures(out, case.name, recorder, peaks, threshold=thr))
     t = case.time

@@ -324,13 +324,14 @@ class OutputSpec(_Spec):
     every: Real | None = Field(None, gt=0)
     front_threshold: Real = Field(1e-3, gt=0)
     pictures: Bool = True
+    vtk: Bool = False  # also write fields.pvd (VTK XML, readable by pyvista/VTK without ADIOS2)
 
 
 class NumericsSpec(_Spec):
     """Wet/dry threshold [m], thin-layer depth [m] and flux-corrected transport switch.
 
     ``thin_depth`` is the depth under which velocities are desingularised,
-    ``u = 2 h q / (h² + max(h, thin_depth)²)``; None means 1e-4 × the largest initial depth.
+    ``u = 2 h q / (h² + max(h, thin_depth)²)``; None means 1e-6 × the largest initial depth.
     """
 
     dry_tolerance: Real = Field(1e-6, gt=0)

@@ -109,7 +109,7 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     num = case.numerics
     thin = num.thin_depth
     if thin is None:
-        thin = 1e-4 * comm.allreduce(float(init["h"].max()) if init["h"].size else 0.0, op=MPI.MAX)
+        thin = 1e-6 * comm.allreduce(float(init["h"].max()) if init["h"].size else 0.0, op=MPI.MAX)
     transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct)
     for name in ("z", "h", "hu", "hv"):
         getattr(transport, name).x.array[:] = init[name]

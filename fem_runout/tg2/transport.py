@@ -23,6 +23,7 @@ from fem_runout.mesh import Discretization, GhostReducer
 from fem_runout.tg2 import fct
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.low_order import (
+    cell_means,
     low_order_pass,
     pair_coefficients,
     reconstructed_surface,
@@ -75,9 +76,13 @@ class Transport:
         self.b_corr = fem.assemble_vector(self.corr_form)
         nc = disc.cell_nodes.shape[0]
         self._dof0 = np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64)
+        if not np.array_equal(self._dof0, U0.dofmap.list[:nc, 0]):
+            raise RuntimeError("DG0 spaces with different cell numbering")
         self._dofs0 = np.asarray(S0.dofmap.list[:nc, 0], dtype=np.int64)
-        self._dofd = np.asarray(Wd.dofmap.list[:nc], dtype=np.int64)
-        self._dofsd = np.asarray(Sd.dofmap.list[:nc], dtype=np.int64)
+        self._dofd = _as_slice(np.asarray(Wd.dofmap.list[:nc], dtype=np.int64))
+        self._dofsd = _as_slice(np.asarray(Sd.dofmap.list[:nc], dtype=np.int64))
+        self._dof0 = _as_slice(self._dof0)
+        self._dofs0 = _as_slice(self._dofs0)
         self.reducer = GhostReducer(disc)
         self.outflow_volume = 0.0
         nn, no = disc.coords.shape[0], disc.n_owned_cells
@@ -86,6 +91,8 @@ class Transport:
         self._owned = disc.cell_nodes[:no]
         self._cellC = np.ascontiguousarray(disc.C[:no])
         self._beta = pair_coefficients(self._cellC)
+        self._means, self._eta_mean = np.empty((nc, 3)), np.empty(nc)
+        self._cell_eta = np.empty((nc, 4))
         self._fresh = False  # low-order rates of the current state are in self._lo
 
     # -- state -----------------------------------------------------------------------------
@@ -139,9 +146,12 @@ class Transport:
         if not self._fresh:
             self._low_order_pass()
         eta_t = self.eta_t.x.array.reshape(-1)
-        cell_eta = np.empty((d.cell_nodes.shape[0], 4))
+        cell_eta = self._cell_eta
         reconstructed_surface(d.cell_nodes, h, z, self.tol, cell_eta)
-        eta_t[self._dofsd] = cell_eta
+        if isinstance(self._dofsd, slice):
+            eta_t.reshape(-1, 4)[self._dofsd] = cell_eta
+        else:
+            eta_t[self._dofsd] = cell_eta
         high = self._high_order(cell_eta)
         q0 = self.state()
         low_rate = self._low_order_rates(h, hu, hv)
@@ -169,22 +179,24 @@ class Transport:
         Qk = self.Qk.x.array.reshape(-1, 3)
         Qk[self._dof0] = b.array.reshape(-1, 3)[self._dof0] / d.cell_area[:, None]
         self.Qk.x.scatter_forward()
-        delta = Qk[self._dof0].copy()
-        nodal = np.stack([self.h.x.array, self.hu.x.array, self.hv.x.array], axis=1)
-        vals = nodal[d.cell_nodes].mean(axis=1) + delta
+        delta = Qk[self._dof0].copy()  # a view when _dof0 is a slice
+        means, eta_mean = self._means, self._eta_mean
+        cell_means(d.cell_nodes, self.h.x.array, self.hu.x.array, self.hv.x.array, cell_eta,
+                   means, eta_mean)
+        vals = means + delta
         Qk[self._dof0] = vals
         hk = vals[:, 0]
-        self.etak.x.array[self._dofs0] = cell_eta.mean(axis=1) + delta[:, 0]
-        wet = hk > self.tol
-        uk = self.uk.x.array.reshape(-1, 2)
-        uk[self._dof0] = 0.0
-        hw = hk[wet]
-        factor = 2.0 * hw / (hw * hw + np.maximum(hw, self.kappa) ** 2)
-        uk[self._dof0[wet]] = vals[wet, 1:] * factor[:, None]
+        self.etak.x.array[self._dofs0] = eta_mean + delta[:, 0]
+        hk_safe = np.maximum(hk, self.tol)
+        factor = np.where(hk > self.tol, 2.0 * hk_safe / (hk_safe**2 + np.maximum(hk, self.kappa)
+                                                          ** 2), 0.0)
+        self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
         b = self.b_corr
         b.array[:] = 0.0
         fem.assemble_vector(b.array, self.corr_form)
         b.scatter_reverse(la.InsertMode.add)
+        if isinstance(self._dofd, slice):
+            return b.array.reshape(-1, 4, 3)[: d.n_owned_cells]
         return b.array.reshape(-1, 3)[self._dofd[: d.n_owned_cells]]
 
     def _low_order_rates(self, h, hu, hv) -> np.ndarray:
@@ -280,6 +292,17 @@ class Transport:
                 un = ux[i] * side.normal[0] + uy[i] * side.normal[1]
                 out += float(np.sum(side.weight[own] * h[i] * un))
         self.outflow_volume += float(self.dt.value) * d.comm.allreduce(out)
+
+
+def _as_slice(dofs: np.ndarray) -> np.ndarray | slice:
+    """A slice when the dofs of consecutive cells are numbered consecutively (a view, no copy).
+
+    For an (n, k) dof list the slice indexes an array reshaped to (-1, k); for (n,) a flat one.
+    """
+    flat = dofs.reshape(-1)
+    if np.array_equal(flat, np.arange(flat.size)):
+        return slice(0, dofs.shape[0])
+    return dofs
 
 
 def d_cells(disc: Discretization) -> np.ndarray:

@@ -1,0 +1,152 @@
+"""TG2-PC verification report: ``python -m fem_runout.bench tg2-report [--out FILE]``.
+
+Runs the seed's tests and Ritter's dam break on refinement ladders and writes a markdown report
+with our numbers next to the exact solutions and the paper's. Run it under ``mpiexec -n 2``
+for speed; the numbers do not depend on the rank count.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+HELP = "TG2-PC verification: dam-break fronts, Ritter, lake at rest, hemisphere."
+CASES = Path(__file__).resolve().parents[2] / "cases"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of the command."""
+    parser.add_argument("--out", default="docs/tg2_verification.md", help="markdown file")
+    parser.add_argument("--levels", type=int, default=3, help="dam-break refinement levels")
+
+
+def _run(name: str, *overrides: str):
+    from mpi4py import MPI
+
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+
+    case = load_case(CASES / f"{name}.yaml", overrides=list(overrides))
+    return run(case, write=False, comm=MPI.COMM_WORLD)
+
+
+def _fronts(nx: int, ny: int) -> tuple[dict[float, float], float, int]:
+    """Front positions (h > 1e-3) at the output times on the [0, 450] m slope."""
+    r = _run("inclined_dam_break_450", f"domain.cells=[{nx},{ny}]", "output.every=2.75")
+    s = r.series
+    fronts = {}
+    if r.x is not None:
+        for t in (2.75, 5.5, 8.25, 11.0):
+            i = int(np.argmin(np.abs(s["t"] - t)))
+            fronts[t] = float(s["front_x"][i])
+    return fronts, r.wall_time, r.steps
+
+
+def dam_break_section(levels: int) -> list[str]:
+    """Front table of seed §4.1 with the exact tip and the paper's values."""
+    from fem_runout.references.inclined_dam_break import PAPER_FRONT, exact_front
+
+    lines = ["## Inclined dam break (seed §4.1)", "",
+             "Front = largest x with h > 1e-3 m, domain [0, 450] × [0, 20] m (same solution as on "
+             "[0, 300] until the front reaches 300 m), open boundaries, frictionless, cfl 0.9.",
+             "", "| cells | dx [m] | steps | wall [s] | 2.75 s | 5.5 s | 8.25 s | 11 s |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for k in range(levels):
+        nx, ny = 495 * 2**k, 33 * 2**k
+        fronts, wall, steps = _fronts(nx, ny)
+        cells = [f"{fronts.get(t, float('nan')):.1f}" for t in (2.75, 5.5, 8.25, 11.0)]
+        lines.append(f"| {nx}×{ny} | {450 / nx:.3f} | {steps} | {wall:.1f} | " + " | ".join(cells)
+                     + " |")
+    exact = [f"{exact_front(t):.1f}" for t in (2.75, 5.5, 8.25, 11.0)]
+    lines.append("| exact tip | | | | " + " | ".join(exact) + " |")
+    lines.append(f"| paper TG2 | | | | | {PAPER_FRONT['tg2'][5.5]} | | {PAPER_FRONT['tg2'][11.0]} |")
+    lines.append(f"| paper DAMPM | | | | | {PAPER_FRONT['dampm'][5.5]} | | "
+                 f"{PAPER_FRONT['dampm'][11.0]} |")
+    return lines
+
+
+def ritter_section() -> list[str]:
+    """L1 error of h at t = 4 s and observed orders."""
+    from fem_runout.references.norms import l1, nodal_weights
+    from fem_runout.references.ritter import ritter_depth
+
+    lines = ["## Ritter dry-bed dam break", "",
+             "h0 = 1 m behind x0 = 50 m, flat, frictionless, t = 4 s; L1 = ∫|h − h_exact| per "
+             "metre of width [m²].", "", "| cells | dx [m] | steps | L1 | order |",
+             "|---:|---:|---:|---:|---:|"]
+    prev = None
+    for nx in (100, 200, 400, 800):
+        r = _run("ritter", f"domain.cells=[{nx},2]", "output.every=4.0")
+        if r.x is None:
+            continue
+        err = l1(r.h - ritter_depth(r.x, 4.0, 1.0, 50.0, 9.81), nodal_weights(r.x, r.y)) / 2.0
+        order = "" if prev is None else f"{np.log2(prev / err):.2f}"
+        lines.append(f"| {nx}×2 | {100 / nx:.3f} | {r.steps} | {err:.4f} | {order} |")
+        prev = err
+    return lines
+
+
+def lake_section() -> list[str]:
+    """Seed Table 2 layout with our numbers."""
+    from fem_runout.references.norms import l1, linf, nodal_weights
+
+    r = _run("lake_at_rest")
+    lines = ["## Lake at rest (seed §4.2, Table 2 layout)", ""]
+    if r.x is None:
+        return lines
+    w = nodal_weights(r.x, r.y)
+    eta = np.where(r.h > 1e-6, r.h + r.z - 10.0, 0.0)
+    paper = {"h": ("2.68e-13", "8.92e-15"), "hu": ("2.38e-13", "1.41e-14"),
+             "hv": ("1.67e-13", "2.02e-14")}
+    lines += ["50×50 cells, walls, T = 1 s, friction and rheology off (issue 3 adds them).", "",
+              "| variable | ours L1 | ours L∞ | paper TG2 L1 | paper TG2 L∞ |",
+              "|---|---:|---:|---:|---:|"]
+    for name, v in (("h", eta), ("hu", r.hu), ("hv", r.hv)):
+        lines.append(f"| {name} | {l1(v, w):.2e} | {linf(v):.2e} | {paper[name][0]} | "
+                     f"{paper[name][1]} |")
+    return lines
+
+
+def hemisphere_section() -> list[str]:
+    """Front radius along x, y and the diagonal at 1.2 s."""
+    from fem_runout.references.norms import front_radius
+
+    lines = ["## Hemisphere collapse (seed §4.1.1)", "",
+             "Radius 5 m at (25, 25), open boundaries, t = 1.2 s; front = h > 1e-3 m.", "",
+             "| cells | dx [m] | r_x | r_y | r_diag | max − min | paper |", "|---:|---:|---:|---:|"
+             "---:|---:|---|"]
+    for n in (100, 200):
+        r = _run("hemisphere", f"domain.cells=[{n},{n}]")
+        if r.x is None:
+            continue
+        rad = [front_radius(r.x, r.y, r.h, (25.0, 25.0), 1e-3, d)
+               for d in ((1, 0), (0, 1), (np.sqrt(0.5), np.sqrt(0.5)))]
+        lines.append(f"| {n}×{n} | {50 / n:.3f} | {rad[0]:.2f} | {rad[1]:.2f} | {rad[2]:.2f} | "
+                     f"{max(rad) - min(rad):.2f} | diameter ≈ 13 m |")
+    return lines
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run every section and write the report on rank 0."""
+    from mpi4py import MPI
+
+    import dolfinx
+
+    start = time.perf_counter()
+    lines = ["# TG2-PC verification", "",
+             f"Generated by `python -m fem_runout.bench tg2-report` on {platform.machine()} "
+             f"({platform.processor() or 'cpu'}), {MPI.COMM_WORLD.size} rank(s), "
+             f"{datetime.date.today()}, DOLFINx {dolfinx.__version__}.", ""]
+    for section in (dam_break_section(args.levels), ritter_section(), lake_section(),
+                    hemisphere_section()):
+        lines += section + [""]
+    lines.append(f"Total time {time.perf_counter() - start:.0f} s.")
+    if MPI.COMM_WORLD.rank == 0:
+        Path(args.out).write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
+    return 0
