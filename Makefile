@@ -36,7 +36,8 @@ lint: setup
 	$(VENV)/bin/ruff check fem_runout mpm tests
 
 bench: setup
-	$(PY) -m fem_runout.bench
+	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 --out docs/step_cost.md
+	$(MPIEXEC) -n $(NP) $(PY) -m fem_runout.bench tg2-report --out docs/tg2_verification.md
 
 clean:
 	rm -rf results .pytest_cache
