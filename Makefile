@@ -28,6 +28,7 @@ demo: setup
 
 test: setup
 	@status=0; \
+	$(VENV)/bin/ruff check fem_runout mpm tests || status=1; \
 	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
 	exit $$status

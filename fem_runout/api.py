@@ -88,7 +88,7 @@ def _prepare_out_dir(case: Case, comm, overwrite: bool) -> Path:
 
 
 def build_solver(case: Case, comm):
-    """The solver of ``case.method`` (collective)."""
+    """Build the solver of ``case.method`` (collective)."""
     if case.method not in IMPLEMENTED_METHODS:
         raise CaseError(
             f"method: '{case.method}' is not implemented yet; available: "

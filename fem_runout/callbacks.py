@@ -28,17 +28,17 @@ class Callback(Protocol):
     """A scheduled action of the runner; every method is collective (called on every rank)."""
 
     def start(self, solver: Solver, info: StepInfo) -> None:
-        """Called once with the initial state (t = 0)."""
+        """Act once on the initial state (t = 0)."""
         ...
 
     def step(self, solver: Solver, info: StepInfo) -> None:
-        """Called after every time step."""
+        """Act after every time step."""
         ...
 
     def output(self, solver: Solver, info: StepInfo) -> None:
-        """Called at every output time, including t = 0 and the final time."""
+        """Act at every output time, including t = 0 and the final time."""
         ...
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
-        """Called once after the last step."""
+        """Act once after the last step."""
         ...

@@ -194,7 +194,7 @@ def _side(disc: Discretization, name: str, kind: str) -> Side:
 
 
 def lumped_mass_form(V: fem.FunctionSpace) -> fem.Form:
-    """The form ``∫ φ_i dx`` (kept for tests that compare against dolfinx assembly)."""
+    """Return the form ``∫ φ_i dx`` (for tests that compare against dolfinx assembly)."""
     return fem.form(ufl.TestFunction(V) * ufl.dx)
 
 
@@ -235,3 +235,28 @@ class GhostReducer:
         ufunc = np.maximum if op == "max" else np.minimum
         ufunc.at(values, self.recv_local, recv)
         self.disc.update_ghosts(values)
+
+
+def open_boundary_measure(disc: Discretization):
+    """``ds`` restricted to the facets of the open sides (None when every side is a wall)."""
+    xmin, xmax, ymin, ymax = disc.extent
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
+    open_sides = [s.name for s in disc.sides if s.kind == "open"]
+    if not open_sides:
+        return None
+    msh = disc.mesh
+    fdim = msh.topology.dim - 1
+
+    def on_open(x: np.ndarray) -> np.ndarray:
+        hit = np.zeros(x.shape[1], dtype=bool)
+        for name in open_sides:
+            axis, value = where[name]
+            hit |= np.abs(x[axis] - value) < tol
+        return hit
+
+    facets = mesh.locate_entities_boundary(msh, fdim, on_open)
+    tags = mesh.meshtags(msh, fdim, np.sort(facets).astype(np.int32),
+                         np.ones(len(facets), dtype=np.int32))
+    return ufl.Measure("ds", domain=msh, subdomain_data=tags, subdomain_id=1,
+                       metadata={"quadrature_degree": 1})

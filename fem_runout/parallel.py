@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
 
 from fem_runout.errors import CaseError
 
-T = TypeVar("T")
 
-
-def agree_on_errors(comm, fn: Callable[[], T]) -> T:
+def agree_on_errors[T](comm, fn: Callable[[], T]) -> T:
     """Call ``fn`` on every rank; if it raised CaseError on any rank, raise it on all.
 
     Input checks that depend on the local part of the mesh (an expression that gives NaN in

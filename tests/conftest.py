@@ -5,9 +5,8 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from mpi4py import MPI  # noqa: E402
-
 import pytest  # noqa: E402
+from mpi4py import MPI  # noqa: E402
 
 
 @pytest.hookimpl(trylast=True)

@@ -64,7 +64,8 @@ def dam_break_section(levels: int) -> list[str]:
                      + " |")
     exact = [f"{exact_front(t):.1f}" for t in (2.75, 5.5, 8.25, 11.0)]
     lines.append("| exact tip | | | | " + " | ".join(exact) + " |")
-    lines.append(f"| paper TG2 | | | | | {PAPER_FRONT['tg2'][5.5]} | | {PAPER_FRONT['tg2'][11.0]} |")
+    lines.append(f"| paper TG2 | | | | | {PAPER_FRONT['tg2'][5.5]} | | "
+                 f"{PAPER_FRONT['tg2'][11.0]} |")
     lines.append(f"| paper DAMPM | | | | | {PAPER_FRONT['dampm'][5.5]} | | "
                  f"{PAPER_FRONT['dampm'][11.0]} |")
     return lines
@@ -118,8 +119,8 @@ def hemisphere_section() -> list[str]:
 
     lines = ["## Hemisphere collapse (seed §4.1.1)", "",
              "Radius 5 m at (25, 25), open boundaries, t = 1.2 s; front = h > 1e-3 m.", "",
-             "| cells | dx [m] | r_x | r_y | r_diag | max − min | paper |", "|---:|---:|---:|---:|"
-             "---:|---:|---|"]
+             "| cells | dx [m] | r_x | r_y | r_diag | max − min | paper |",
+             "|---:|---:|---:|---:|---:|---:|---|"]
     for n in (100, 200):
         r = _run("hemisphere", f"domain.cells=[{n},{n}]")
         if r.x is None:
@@ -133,9 +134,8 @@ def hemisphere_section() -> list[str]:
 
 def main(args: argparse.Namespace) -> int:
     """Run every section and write the report on rank 0."""
-    from mpi4py import MPI
-
     import dolfinx
+    from mpi4py import MPI
 
     start = time.perf_counter()
     lines = ["# TG2-PC verification", "",

@@ -9,7 +9,8 @@ def nodal_weights(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Lumped Q1 mass of each node of a uniform rectangular grid (exact ``∫ φ_i``).
 
     Args:
-        x, y: Node coordinates of the whole grid.
+        x: Node x-coordinates of the whole grid.
+        y: Node y-coordinates of the whole grid.
     """
     def weights_1d(v: np.ndarray) -> np.ndarray:
         u = np.unique(np.round(v, 9))
@@ -36,7 +37,9 @@ def front_radius(x, y, h, center, threshold, direction) -> float:
     """Largest distance from ``center`` along a ray where ``h > threshold`` (nodes on the ray).
 
     Args:
-        x, y, h: Gathered node arrays.
+        x: Gathered node x-coordinates.
+        y: Gathered node y-coordinates.
+        h: Gathered depth.
         center: (xc, yc), a node of the grid.
         threshold: Wet threshold [m].
         direction: Unit vector; only nodes within 1e-6 of the ray are used.

@@ -6,7 +6,8 @@ contribution, is added back with one factor ``α_K ∈ [0, 1]`` per cell (a Q0 f
 
     m_i u_i^{n+1} = m_i u_i^L + Σ_K α_K A[K, i]
 
-Zalesak's choice of ``α_K`` keeps every ``u_i^{n+1}`` inside ``[u_i^L + Q⁻_i/m_i, u_i^L + Q⁺_i/m_i]``:
+Zalesak's choice of ``α_K`` keeps every ``u_i^{n+1}`` inside
+``[u_i^L + Q⁻_i/m_i, u_i^L + Q⁺_i/m_i]``:
 ``P^±_i`` are the sums of positive/negative contributions to node i, ``R^±_i = min(1, Q^±_i/P^±_i)``
 and ``α_K = min_i (R⁺_i if A[K,i] > 0 else R⁻_i)``. Because each cell's contributions to a
 conserved variable sum to zero, the limited update stays conservative.

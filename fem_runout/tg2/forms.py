@@ -71,6 +71,9 @@ def corrector_form(
     dt: fem.Constant,
     g: fem.Constant,
     dry: fem.Constant,
+    z: fem.Function,
+    ds_open: ufl.Measure | None,
+    spacing: tuple[float, float] = (1.0, 1.0),
 ) -> fem.Form:
     """Linear form of the high-order corrector element contributions (eqs. 10–12).
 
@@ -82,6 +85,14 @@ def corrector_form(
         dt: Time step.
         g: Gravity.
         dry: Dry tolerance on h.
+        z: Q1 bed elevation (for the ghost state of open boundaries).
+        ds_open: Measure of the open boundary facets, or None if there are none.
+        spacing: Cell size (dx, dy) of the structured grid.
+
+    On an open side the ghost cell continues the bed with its slope (zero-gradient depth and
+    velocity): the jump ``[η] = ∂Z/∂n Δn`` across the boundary, with half weight because the
+    boundary node owns half a patch, gives the boundary nodes the normal bed-slope force that
+    interior nodes get from their edges (a uniform sheet on a slope stays uniform).
     """
     psi = ufl.TestFunction(Wd)
     hk, qx, qy = cell_state[0], cell_state[1], cell_state[2]
@@ -98,4 +109,9 @@ def corrector_form(
     dS = ufl.dS(metadata={"quadrature_degree": 1})
     cell = ufl.inner(flux, ufl.grad(psi)) * dx
     edge = fluct * ufl.dot(n("+"), 0.5 * (psi_m("+") + psi_m("-"))) * dS
-    return fem.form(dt * cell - dt * edge)
+    form = dt * cell - dt * edge
+    if ds_open is not None:
+        normal_size = abs(n[0]) * spacing[0] + abs(n[1]) * spacing[1]
+        jump = ufl.dot(ufl.grad(z), n) * normal_size
+        form = form - dt * 0.5 * g * hk * jump * ufl.dot(n, psi_m) * ds_open
+    return fem.form(form)

@@ -3,7 +3,8 @@
 For every owned cell ``K`` and node pair ``i != j`` of ``K``, with ``β_ij`` the antisymmetric part
 of ``∫_K φ_i ∇φ_j``, the hydrostatically reconstructed depths
 ``h*_ij = max(0, h_i + Z_i - max(Z_i, Z_j))`` (Audusse et al. 2004), ``q*_ij = h*_ij u_i`` and the
-Rusanov viscosity ``d_ij = λ_ij |β_ij|``, ``λ_ij = max(|u_i·n| + sqrt(g h_i), |u_j·n| + sqrt(g h_j))``:
+Rusanov viscosity ``d_ij = λ_ij |β_ij|``,
+``λ_ij = max(|u_i·n| + sqrt(g h_i), |u_j·n| + sqrt(g h_j))``:
 
     mass_i += -β_ij·(q*_ij + q*_ji) + d_ij (h*_ji - h*_ij)
     mom_i  += -(β_ij·u_i) q*_ij - (β_ij·u_j) q*_ji + d_ij (q*_ji - q*_ij)
@@ -72,8 +73,12 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
         cells: (n, 4) local node indices of the cells to process.
         beta: (n, 6, 2) pair coefficients (:func:`pair_coefficients`).
         C: (n, 4, 4, 2) ``∫_K φ_i ∇φ_j`` (for the pressure term).
-        h, qx, qy, z: Nodal depth, momenta and elevation (ghosts up to date).
-        ux, uy: Nodal velocity (see :func:`velocity`).
+        h: Nodal depth (ghosts up to date).
+        qx: Nodal x-momentum.
+        qy: Nodal y-momentum.
+        z: Nodal elevation.
+        ux: Nodal x-velocity (see :func:`velocity`).
+        uy: Nodal y-velocity.
         g: Gravity.
         tol: Dry tolerance on h.
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
@@ -133,7 +138,8 @@ def reconstructed_surface(cells, h, z, tol, out):
 
     Args:
         cells: (n, 4) local node indices.
-        h, z: Nodal depth and elevation.
+        h: Nodal depth.
+        z: Nodal elevation.
         tol: Dry tolerance.
         out: (n, 4) output, the DQ1 coefficients of η̃ (lake at rest gives a constant η̃).
     """

@@ -10,20 +10,38 @@ from fem_runout.errors import CaseError
 from fem_runout.initial import depth_below_surface
 from fem_runout.mesh import Discretization, build_discretization
 from fem_runout.parallel import agree_on_errors
+from fem_runout.physics.friction import friction_from_spec
+from fem_runout.physics.rheology import rheology_from_spec
+from fem_runout.tg2.diffusion import DiffusionReaction
 from fem_runout.tg2.transport import Transport
 
 
 class TG2Solver:
-    """Split IMEX-RKC TG2-PC (seed §3.1.2); without friction and rheology, transport only.
+    """Split IMEX-RKC TG2-PC (seed §3.1.2).
+
+    One step is Strang's ``T(dt/2) D(dt) T(dt/2)``: transport ``T`` by TG2-PC + FCT, and the
+    diffusion–reaction ``D`` (Bingham stress by IMEX-RKC, friction implicit per node). Only the
+    transport CFL limits ``dt``: each half step uses ``cfl · dt_T``, so :meth:`stable_dt` is
+    ``2 dt_T``; the second half is sub-cycled if the state after ``D`` needs it. Without
+    friction and rheology ``D`` is None and a step is ``T(dt)`` (nothing else is built).
 
     Attributes:
         disc: The discretization.
         transport: The TG2-PC transport operator.
+        reaction: The diffusion–reaction operator, or None.
     """
 
-    def __init__(self, disc: Discretization, transport: Transport) -> None:
+    def __init__(
+        self,
+        disc: Discretization,
+        transport: Transport,
+        reaction: DiffusionReaction | None = None,
+        cfl: float = 0.9,
+    ) -> None:
         self.disc = disc
         self.transport = transport
+        self.reaction = reaction
+        self.cfl = cfl
         self.comm = disc.comm
         self.mesh = disc.mesh
         self.V = disc.V
@@ -38,11 +56,51 @@ class TG2Solver:
 
     def stable_dt(self) -> float:
         """Transport CFL limit (the only limit: friction/rheology are implicit or stabilised)."""
-        return self.transport.stable_dt()
+        dt = self.transport.stable_dt()
+        return dt if self.reaction is None else 2.0 * dt
 
     def advance(self, dt: float) -> None:
-        """One step of size dt."""
-        self.transport.step(dt)
+        """One step of size dt (Strang-split when there is a diffusion–reaction part)."""
+        if self.reaction is None:
+            self.transport.step(dt)
+            return
+        self.transport.step(0.5 * dt)
+        t = self.transport
+        q = self.reaction.step(t.state()[:, 1:], dt)
+        state = t.state()
+        state[:, 1:] = q
+        for side in self.disc.sides:
+            if side.kind == "wall":
+                state[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
+        t.set_state(state)
+        held = (np.hypot(q[:, 0], q[:, 1]) == 0.0) & (state[:, 0] > t.tol)
+        remaining = 0.5 * dt
+        while remaining > 0.0:
+            sub = min(remaining, self.cfl * t.stable_dt())
+            if sub >= remaining * (1.0 - 1e-12):
+                sub = remaining
+            t.step(sub)
+            remaining -= sub
+        self._hold(held, 0.5 * dt)
+
+    def _hold(self, held: np.ndarray, half: float) -> None:
+        """Apply static Coulomb friction over the second half step to nodes D brought to rest.
+
+        Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step, which gives a layer
+        that friction holds at rest the impulse ``g S h dt/2`` of its slope. A node that ``D``
+        stopped stays at rest if that impulse is within the Coulomb capacity of the half step,
+        ``|q| <= (dt/2) g μ h`` — the yield test of the friction law itself. Moving nodes are
+        not touched.
+        """
+        friction = self.reaction.friction if self.reaction is not None else None
+        if friction is None or not held.any():
+            return
+        t = self.transport
+        state = t.state()
+        cap = half * friction.gravity * friction.mu * state[:, 0]
+        stop = held & (np.hypot(state[:, 1], state[:, 2]) <= cap)
+        state[stop, 1:] = 0.0
+        t.set_state(state)
 
     def snapshot(self) -> tuple[np.ndarray, float]:
         """Copy the state, to restore the last good step."""
@@ -96,12 +154,6 @@ def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:
 
 def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     """Create the TG2-PC solver of a case (collective)."""
-    friction, rheology = case.material.friction, case.material.rheology
-    if friction.law != "none" or rheology.law != "none":
-        raise CaseError(
-            f"material: friction law '{friction.law}' / rheology '{rheology.law}' is not "
-            "implemented yet for method tg2; allowed now: friction none, rheology none"
-        )
     disc = build_discretization(
         comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
     )
@@ -113,4 +165,10 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct)
     for name in ("z", "h", "hu", "hv"):
         getattr(transport, name).x.array[:] = init[name]
-    return TG2Solver(disc, transport)
+    friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
+    rheology = rheology_from_spec(case.material.rheology, case.material.density)
+    reaction = None
+    if friction is not None or rheology is not None:
+        reaction = DiffusionReaction(disc, transport.h, friction, rheology, num.dry_tolerance,
+                                     thin)
+    return TG2Solver(disc, transport, reaction, case.time.cfl)

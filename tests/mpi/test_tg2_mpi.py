@@ -41,3 +41,24 @@ def test_same_result_on_one_and_two_ranks_open_slope():
 def test_same_result_on_one_and_two_ranks_closed_box():
     _compare(case("hemisphere", "domain.extent=[15,35,15,35]", "domain.cells=[30,30]",
                   "domain.boundary=wall", "time.end=2.0", "output.every=1.0"))
+
+
+FULL = ("material.friction={law: voellmy, phi_deg: 26, xi: 500}",
+        "material.rheology={law: bingham, viscosity: 2000, yield_stress: 30}")
+
+
+def test_lake_at_rest_with_friction_and_rheology_in_parallel():
+    result = run(case("lake_at_rest", *FULL), write=False, comm=WORLD)
+    if WORLD.rank == 0:
+        for name, (e1, einf) in lake_errors(result).items():
+            assert e1 <= 1e-12 and einf <= 1e-12, (name, e1, einf)
+
+
+def test_voellmy_dam_break_same_on_one_and_two_ranks():
+    _compare(case("inclined_dam_break", "domain.cells=[120,8]", "time.end=3.0",
+                  "output.every=1.0", "material.friction={law: voellmy, phi_deg: 26, xi: 500}"))
+
+
+def test_bingham_voellmy_dam_break_same_on_one_and_two_ranks():
+    _compare(case("inclined_dam_break", "domain.cells=[120,8]", "time.end=2.0",
+                  "output.every=1.0", *FULL))
