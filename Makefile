@@ -38,6 +38,8 @@ lint: setup
 
 bench: setup
 	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 --out docs/step_cost.md
+	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 \
+		--case cases/hemisphere_bingham.yaml --out docs/step_cost_rheology.md
 	$(MPIEXEC) -n $(NP) $(PY) -m fem_runout.bench tg2-report --out docs/tg2_verification.md
 
 clean:

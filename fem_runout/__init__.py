@@ -11,6 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
+# The DOLFINx wheel finds its MPI library through mpi4py: load it before any submodule
+# imports DOLFINx (import sorting may put ``import dolfinx`` first in a module).
+from mpi4py import MPI as _MPI  # noqa: F401
+
 __all__ = ["load_case", "run"]
 
 
