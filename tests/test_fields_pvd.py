@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 from mpi4py import MPI
 
 # isort: split
@@ -11,11 +9,10 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 import pyvista as pv
-import ufl
-from dolfinx import fem, la, mesh
 
 from fem_runout.callbacks import StepInfo
 from fem_runout.output import FIELD_NAMES, FieldWriter, read_vtx_bp4
+from tests.fake_solver import fake_solver
 
 NX, NY, LX, LY = 8, 4, 4.0, 2.0
 THRESHOLD = 1e-3
@@ -24,18 +21,7 @@ TIMES = [0.0, 0.5]
 
 def make_solver(comm, h, hu, hv, z):
     """A stand-in for a Solver: Q1 fields interpolated from formulas of ``(x, y)``."""
-    msh = mesh.create_rectangle(comm, [[0.0, 0.0], [LX, LY]], [NX, NY], mesh.CellType.quadrilateral)
-    V = fem.functionspace(msh, ("Lagrange", 1))
-    fields = {}
-    for name, formula in (("h", h), ("hu", hu), ("hv", hv), ("z", z)):
-        fields[name] = fem.Function(V, name=name)
-        fields[name].interpolate(lambda x, f=formula: f(x[0], x[1]) + 0.0 * x[0])
-    mass = fem.assemble_vector(fem.form(ufl.TestFunction(V) * ufl.dx))
-    mass.scatter_reverse(la.InsertMode.add)
-    mass.scatter_forward()
-    return SimpleNamespace(
-        comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0
-    )
+    return fake_solver(comm, {"h": h, "hu": hu, "hv": hv, "z": z}, (NX, NY), (LX, LY))
 
 
 def by_coordinates(points, values):

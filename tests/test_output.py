@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-from types import SimpleNamespace
 
 from mpi4py import MPI
 
@@ -11,8 +10,6 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-import ufl
-from dolfinx import fem, la, mesh
 
 from fem_runout.callbacks import StepInfo
 from fem_runout.output import (
@@ -28,6 +25,7 @@ from fem_runout.output import (
     read_vtx_bp4,
     render_depth,
 )
+from tests.fake_solver import fake_solver
 
 NX, NY, LX, LY = 8, 4, 4.0, 2.0
 RHO = 2000.0
@@ -36,18 +34,7 @@ THRESHOLD = 1e-3
 
 def make_solver(comm, h, hu, hv, z):
     """A stand-in for a Solver: Q1 fields interpolated from formulas of ``(x, y)``."""
-    msh = mesh.create_rectangle(comm, [[0.0, 0.0], [LX, LY]], [NX, NY], mesh.CellType.quadrilateral)
-    V = fem.functionspace(msh, ("Lagrange", 1))
-    fields = {}
-    for name, formula in (("h", h), ("hu", hu), ("hv", hv), ("z", z)):
-        fields[name] = fem.Function(V, name=name)
-        fields[name].interpolate(lambda x, f=formula: f(x[0], x[1]) + 0.0 * x[0])
-    mass = fem.assemble_vector(fem.form(ufl.TestFunction(V) * ufl.dx))
-    mass.scatter_reverse(la.InsertMode.add)
-    mass.scatter_forward()
-    return SimpleNamespace(
-        comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0
-    )
+    return fake_solver(comm, {"h": h, "hu": hu, "hv": hv, "z": z}, (NX, NY), (LX, LY))
 
 
 def trapezoid_weights():

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from types import SimpleNamespace
 
 from mpi4py import MPI
 
@@ -12,8 +11,6 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-import ufl
-from dolfinx import fem, la, mesh
 
 from fem_runout.callbacks import StepInfo
 from fem_runout.output import (
@@ -24,6 +21,7 @@ from fem_runout.output import (
     gather_nodal,
     read_vtx_bp4,
 )
+from tests.fake_solver import fake_solver
 
 WORLD = MPI.COMM_WORLD
 NX, NY = 8, 4
@@ -39,20 +37,7 @@ def formulas():
 
 
 def make_solver(comm):
-    msh = mesh.create_rectangle(
-        comm, [[0.0, 0.0], [4.0, 2.0]], [NX, NY], mesh.CellType.quadrilateral
-    )
-    V = fem.functionspace(msh, ("Lagrange", 1))
-    fields = {}
-    for name, formula in formulas().items():
-        fields[name] = fem.Function(V, name=name)
-        fields[name].interpolate(lambda x, f=formula: f(x[0], x[1]) + 0.0 * x[0])
-    mass = fem.assemble_vector(fem.form(ufl.TestFunction(V) * ufl.dx))
-    mass.scatter_reverse(la.InsertMode.add)
-    mass.scatter_forward()
-    return SimpleNamespace(
-        comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0
-    )
+    return fake_solver(comm, formulas(), (NX, NY), (4.0, 2.0))
 
 
 def shared_tmp(tmp_path: Path) -> Path:
