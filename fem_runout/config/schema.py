@@ -15,7 +15,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
-from fem_runout.config.expr import Expression, ExpressionError, check_expression, compile_expression
+from fem_runout.config.expr import Expression, compile_expression
+from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, is_number
 
 __all__ = [
     "BoundarySides",
@@ -34,63 +35,6 @@ __all__ = [
 
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
 BoundaryKind = Literal["open", "wall"]
-
-
-class SpecError(ValueError):
-    """A check failed; ``key`` (if set) is the sub-key the problem is about."""
-
-    def __init__(self, message: str, key: str | None = None) -> None:
-        super().__init__(message)
-        self.key = key
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _real(value: Any) -> Any:
-    """Accept finite real numbers only (no strings, no booleans)."""
-    if value is None:
-        return value
-    if not _is_number(value):
-        raise SpecError(f"must be a number, got {value!r}")
-    if not math.isfinite(value):
-        raise SpecError(f"must be a finite number, got {value!r}")
-    return float(value)
-
-
-def _integer(value: Any) -> Any:
-    """Accept integers only (no floats, strings or booleans)."""
-    if value is None:
-        return value
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise SpecError(f"must be an integer, got {value!r}")
-    return value
-
-
-def _expression(value: Any) -> Any:
-    """Accept an expression string (or a plain number) and check it."""
-    if _is_number(value):
-        value = repr(value)
-    if not isinstance(value, str):
-        raise SpecError(f'must be an expression string such as "100 - x/3", got {value!r}')
-    try:
-        check_expression(value)
-    except ExpressionError as exc:
-        raise SpecError(str(exc)) from None
-    return value
-
-
-def _strict_bool(value: Any) -> Any:
-    if not isinstance(value, bool):
-        raise SpecError(f"must be true or false, got {value!r}")
-    return value
-
-
-Real = Annotated[float, BeforeValidator(_real)]
-Int = Annotated[int, BeforeValidator(_integer)]
-Expr = Annotated[str, BeforeValidator(_expression)]
-Bool = Annotated[bool, BeforeValidator(_strict_bool)]
 
 
 class _Spec(BaseModel):
@@ -119,7 +63,7 @@ def _boundary(value: Any) -> Any:
 
 
 def _extent(value: Any) -> Any:
-    ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(_is_number, value))
+    ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(is_number, value))
     if not ok or not all(math.isfinite(v) for v in value):
         raise SpecError(f"must be four numbers [xmin, xmax, ymin, ymax], got {value!r}")
     if not (value[0] < value[1] and value[2] < value[3]):
@@ -359,7 +303,7 @@ def _fill_output(data: dict[str, Any]) -> dict[str, Any]:
         output["dir"] = f"results/{name}"
     time = data.get("time")
     end = time.get("end") if isinstance(time, dict) else None
-    if output.get("every") is None and _is_number(end) and math.isfinite(end) and end > 0:
+    if output.get("every") is None and is_number(end) and math.isfinite(end) and end > 0:
         output["every"] = end / 10
     return {**data, "output": output}
 
