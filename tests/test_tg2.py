@@ -129,3 +129,14 @@ def _fronts(c, times):
 
     Runner(solver, Schedule(max(times), 0.9, times[0]), [Front()]).run()
     return {t: found[round(t, 6)] for t in times}
+
+
+def test_y_invariant_dam_break_stays_y_invariant():
+    """The inclined dam break does not depend on y: no transverse variation may grow."""
+    r = run(case("inclined_dam_break", "time.end=3.0", "output.every=3.0"), write=False,
+            comm=COMM)
+    depth = r.h.reshape(34, 331)
+    mean = depth.mean(axis=0)
+    spread = (depth.max(axis=0) - depth.min(axis=0))[mean > 0.01] / mean[mean > 0.01]
+    print(f"transverse spread / depth: median {np.median(spread):.1e}, max {spread.max():.1e}")
+    assert np.median(spread) < 1e-9 and spread.max() < 1e-5
