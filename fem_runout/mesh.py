@@ -193,11 +193,6 @@ def _side(disc: Discretization, name: str, kind: str) -> Side:
     return Side(name, kind, np.array(_NORMALS[name]), nodes, weight)
 
 
-def lumped_mass_form(V: fem.FunctionSpace) -> fem.Form:
-    """Return the form ``∫ φ_i dx`` (for tests that compare against dolfinx assembly)."""
-    return fem.form(ufl.TestFunction(V) * ufl.dx)
-
-
 class GhostReducer:
     """Max/min reduction of nodal values over the ranks that share a node.
 

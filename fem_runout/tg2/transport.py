@@ -373,8 +373,3 @@ def _as_slice(dofs: np.ndarray) -> np.ndarray | slice:
     if np.array_equal(flat, np.arange(flat.size)):
         return slice(0, dofs.shape[0])
     return dofs
-
-
-def d_cells(disc: Discretization) -> np.ndarray:
-    """All local cells (owned and ghost): the patch of an owned node may include ghost cells."""
-    return disc.cell_nodes
