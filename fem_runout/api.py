@@ -12,7 +12,7 @@ import numpy as np
 from fem_runout.config import Case, dump_resolved, load_case
 from fem_runout.errors import CaseError
 
-IMPLEMENTED_METHODS = frozenset({"tg2"})
+IMPLEMENTED_METHODS = frozenset({"tg2", "mpm"})
 
 __all__ = ["IMPLEMENTED_METHODS", "RunResult", "load_case", "run"]
 
@@ -32,6 +32,7 @@ class RunResult:
         steps: Number of time steps.
         t: Final time.
         out_dir: Output folder (None when nothing was written).
+        particles: Final number of particles (DAMPM; None for mesh-only methods).
     """
 
     x: np.ndarray | None = None
@@ -47,6 +48,7 @@ class RunResult:
     steps: int = 0
     t: float = 0.0
     out_dir: Path | None = None
+    particles: int | None = None
 
 
 class _Progress:
@@ -94,6 +96,10 @@ def build_solver(case: Case, comm):
             f"method: '{case.method}' is not implemented yet; available: "
             + ", ".join(sorted(IMPLEMENTED_METHODS))
         )
+    if case.method == "mpm":
+        from mpm.build import build_mpm
+
+        return build_mpm(case, comm)
     from fem_runout.tg2.solver import build_tg2
 
     return build_tg2(case, comm)
@@ -141,6 +147,10 @@ def run(
         )
         if case.output.pictures:
             callbacks.append(Pictures(out, case.name, recorder, peaks, threshold=thr))
+        if hasattr(solver, "particles"):
+            from mpm.output import ParticleWriter
+
+            callbacks.append(ParticleWriter(out))
     t = case.time
     schedule = Schedule(t.end, t.cfl, case.output.every, t.max_steps, t.dt_max)
     progress = _Progress(t.end, case.name) if (not quiet and comm.rank == 0) else None
@@ -149,7 +159,8 @@ def run(
     final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
     envelope = peaks.gathered()
     result = RunResult(series=recorder.series, wall_time=runner.wall_time, steps=info.step,
-                       t=info.t, out_dir=out)
+                       t=info.t, out_dir=out,
+                       particles=getattr(solver, "n_particles", None))
     if final is not None:
         for key in ("x", "y", "h", "hu", "hv", "z"):
             setattr(result, key, final[key])

@@ -1,5 +1,7 @@
-"""DAMPM: the depth-averaged material point method of the seed (§3.2) — issue 4.
+"""DAMPM: the depth-averaged material point method of the seed (§3.2).
 
-It will reuse fem_runout's mesh, Q1 space, physics objects and runner; ``method: mpm`` is
-refused with a clear message until then.
+It reuses fem_runout's mesh, Q1 space, initial fields, physics objects (friction, Bingham),
+runner and outputs; ``method: mpm`` in a case file selects it. See docs/method.md.
 """
+
+import mpi4py.MPI  # noqa: F401  (DOLFINx needs libmpi loaded first)

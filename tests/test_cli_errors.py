@@ -100,8 +100,10 @@ BAD_CASES: list[tuple[str, Any, list[str], str]] = [
     ("set-unknown-key", GOOD, ["--set", "time.ned=3"], "time.ned"),
     ("set-without-equals", GOOD, ["--set", "time.end"], "override 'time.end'"),
     ("set-bad-value", GOOD, ["--set", "time.end=-2"], "time.end"),
-    ("method-mpm-option", GOOD, ["--method", "mpm"], "method 'mpm' is not implemented"),
-    ("method-mpm-in-file", _set(GOOD, "method", "mpm"), [], "method 'mpm' is not implemented"),
+    ("method-unknown-in-file", _set(GOOD, "method", "sph"), [], "method"),
+    ("particles-per-direction-zero", _set(GOOD, "numerics.particles_per_direction", 0), [],
+     "numerics.particles_per_direction"),
+    ("flip-above-one", _set(GOOD, "numerics.flip", 1.5), [], "numerics.flip"),
 ]
 
 

@@ -272,7 +272,7 @@ class OutputSpec(_Spec):
 
 
 class NumericsSpec(_Spec):
-    """Wet/dry threshold [m], thin-layer depth [m] and flux-corrected transport switch.
+    """Wet/dry threshold [m], thin-layer depth [m], FCT switch (TG2) and particles (DAMPM).
 
     ``thin_depth`` is the depth under which velocities are desingularised,
     ``u = 2 h q / (h² + max(h, thin_depth)²)``; None means 1e-6 × the largest initial depth.
@@ -281,6 +281,8 @@ class NumericsSpec(_Spec):
     dry_tolerance: Real = Field(1e-6, gt=0)
     thin_depth: Real | None = Field(None, gt=0)
     fct: Bool = True
+    particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
+    flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
 
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")

@@ -1,0 +1,57 @@
+"""Set up the DAMPM solver of a case: the same mesh, Q1 space, initial fields and physics as TG2."""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from fem_runout.config import Case
+from fem_runout.mesh import build_discretization
+from fem_runout.parallel import agree_on_errors
+from fem_runout.physics.friction import friction_from_spec
+from fem_runout.physics.rheology import rheology_from_spec
+from fem_runout.tg2.solver import initial_fields
+from mpm.grid import ParticleGrid
+from mpm.migrate import migrate
+from mpm.particles import seed_particles
+from mpm.solver import MPMSolver
+
+__all__ = ["build_mpm", "still_water_depth"]
+
+
+def still_water_depth(case: Case, comm: MPI.Comm, coords: np.ndarray,
+                      h: np.ndarray) -> np.ndarray | None:
+    """Return the nodal still-water depth ``H`` of seed eq. 46, or None.
+
+    A case has a still-water level when its initial state is given as a free surface that is
+    the same constant everywhere (e.g. ``free_surface: "10"``); then ``H`` is the initial
+    depth ``max(level - Z, 0)`` (bitwise the nodal depth the particles are seeded from).
+    """
+    surface_fn = case.initial.free_surface_fn()
+    if surface_fn is None:
+        return None
+    eta = np.broadcast_to(np.asarray(surface_fn(coords[:, 0], coords[:, 1]), float), h.shape)
+    lo = comm.allreduce(float(eta.min(initial=np.inf)), op=MPI.MIN)
+    hi = comm.allreduce(float(eta.max(initial=-np.inf)), op=MPI.MAX)
+    return h.copy() if lo == hi else None
+
+
+def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
+    """Create the DAMPM solver of a case (collective)."""
+    disc = build_discretization(
+        comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
+    )
+    init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
+    x, y = disc.coords[:, 0], disc.coords[:, 1]
+    u_fn, v_fn = case.initial.velocity_fns()
+    u = np.broadcast_to(np.asarray(u_fn(x, y), float), x.shape)
+    v = np.broadcast_to(np.asarray(v_fn(x, y), float), x.shape)
+    grid = ParticleGrid(disc)
+    particles = seed_particles(grid, init["h"], u, v, case.numerics.particles_per_direction)
+    particles, _ = migrate(grid, particles)
+    num = case.numerics
+    friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
+    rheology = rheology_from_spec(case.material.rheology, case.material.density)
+    still = still_water_depth(case, comm, disc.coords, init["h"])
+    return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
+                     friction, rheology, still, num.flip)

@@ -1,0 +1,126 @@
+"""The background grid of DAMPM: fem_runout's Q1 space seen from the particles.
+
+Particles are located by structured-grid index arithmetic (no bounding-box search): on the
+``nx × ny`` rectangle a particle sits in column ``i`` and row ``j`` (structured index
+``j nx + i``) at reference coordinates ``(ξ, η) ∈ [0, 1]²``; a displacement moves ``ξ`` and
+carries whole cells into ``i`` (:meth:`ParticleGrid.move`). Two dense tables, built once, turn
+the structured index into the local DOLFINx cell (owned cells only) and into the rank that
+owns the cell (for migration).
+
+The Q1 basis at the particles is tabulated by basix (the element of the state space) at
+``(ξ, η)``. Basix orders the four vertex dofs ``(0,0), (1,0), (0,1), (1,1)``; ``cell_nodes``
+holds every cell's local dofs in that order (the DOLFINx dofmap order of a cell need not be).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import basix
+import numpy as np
+
+from fem_runout.mesh import Discretization
+
+__all__ = ["Basis", "ParticleGrid"]
+
+_ELEMENT = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+
+
+@dataclass
+class Basis:
+    """Q1 basis at a set of particles.
+
+    Attributes:
+        cells: (n,) local cell of each particle.
+        nodes: (n, 4) local dofs of that cell, basix order.
+        N: (n, 4) values ``N_i(x_p)``.
+        dN: (n, 4, 2) physical gradients ``∇N_i(x_p)``.
+    """
+
+    cells: np.ndarray
+    nodes: np.ndarray
+    N: np.ndarray
+    dN: np.ndarray
+
+
+class ParticleGrid:
+    """Locate points on the structured grid of a :class:`Discretization` and tabulate Q1 there.
+
+    Args:
+        disc: The shared discretization (mesh, Q1 space, cell–node arrays).
+    """
+
+    def __init__(self, disc: Discretization) -> None:
+        self.disc = disc
+        self.comm = disc.comm
+        self.nx, self.ny = disc.cells
+        self.xmin, self.xmax, self.ymin, self.ymax = disc.extent
+        self.dx, self.dy = disc.spacing
+        xc = disc.coords[disc.cell_nodes]  # (n_cells, 4, 2) dofmap order
+        centre = xc.mean(axis=1)
+        ij = self._column_row(centre[:, 0], centre[:, 1])
+        self.cell_index = ij[1] * self.nx + ij[0]  # structured index of every local cell
+        corner = (xc[:, :, 0] > centre[:, None, 0]).astype(int) + 2 * (
+            xc[:, :, 1] > centre[:, None, 1]
+        )
+        order = np.argsort(corner, axis=1)
+        self.cell_nodes = np.take_along_axis(disc.cell_nodes, order, axis=1)
+        n_own = disc.n_owned_cells
+        self.local_cell = np.full(self.nx * self.ny, -1, dtype=np.int64)
+        self.local_cell[self.cell_index[:n_own]] = np.arange(n_own)
+        owned = self.comm.allgather(self.cell_index[:n_own])
+        self.owner = np.empty(self.nx * self.ny, dtype=np.int32)
+        for rank, idx in enumerate(owned):
+            self.owner[idx] = rank
+
+    def _column_row(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i = np.clip(np.floor((x - self.xmin) / self.dx).astype(np.int64), 0, self.nx - 1)
+        j = np.clip(np.floor((y - self.ymin) / self.dy).astype(np.int64), 0, self.ny - 1)
+        return i, j
+
+    def move(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, dx: np.ndarray,
+             dy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Displace particles by ``(dx, dy)`` metres in cell-local coordinates.
+
+        Returns:
+            ``(i, j, ξ, η)``: column and row (possibly outside ``[0, nx) × [0, ny)``) and the
+            reference coordinates in ``[0, 1)``.
+        """
+        s, t = xi + dx / self.dx, eta + dy / self.dy
+        di, dj = np.floor(s), np.floor(t)
+        i = cell % self.nx + di.astype(np.int64)
+        j = cell // self.nx + dj.astype(np.int64)
+        return i, j, s - di, t - dj
+
+    def basis(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> Basis:
+        """Q1 basis values and gradients at particles in the owned cells of this rank.
+
+        Args:
+            cell: (n,) structured cell indices (owned by this rank).
+            xi: (n,) first reference coordinate in the cells.
+            eta: (n,) second reference coordinate in the cells.
+
+        Returns:
+            The :class:`Basis` (basix tabulation at the reference coordinates).
+
+        Raises:
+            ValueError: If a particle is not in a cell owned by this rank.
+        """
+        cells = self.local_cell[cell]
+        if cells.size and cells.min() < 0:
+            raise ValueError("a particle lies outside the cells owned by this rank")
+        ref = np.empty((cell.size, 2))
+        ref[:, 0], ref[:, 1] = xi, eta
+        tab = _ELEMENT.tabulate(1, ref)  # (3, n, 4, 1)
+        dN = np.empty((cell.size, 4, 2))
+        dN[:, :, 0] = tab[1, :, :, 0] / self.dx
+        dN[:, :, 1] = tab[2, :, :, 0] / self.dy
+        return Basis(cells, self.cell_nodes[cells], np.ascontiguousarray(tab[0, :, :, 0]), dN)
+
+    def owned_cells(self) -> np.ndarray:
+        """Structured indices of the cells this rank owns (local cell order)."""
+        return self.cell_index[: self.disc.n_owned_cells]
+
+    def cell_origin(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lower-left corner of structured cells."""
+        return self.xmin + (index % self.nx) * self.dx, self.ymin + (index // self.nx) * self.dy

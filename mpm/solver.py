@@ -1,0 +1,250 @@
+"""The DAMPM solver (seed §3.2): material points on fem_runout's Q1 space, USL, MPI-parallel.
+
+One step of size ``Δt`` (the grid sums of the current particles are cached from the end of the
+previous step):
+
+1. nodal mass, momentum and force (P2G, seed eqs. 33-34, lumped ``M_i``), nodal acceleration
+   and velocity (eqs. 35-37) ``v_i^* = (p_i + Δt f_i)/M_i``;
+2. bed friction (eq. 2) implicit per node on ``v^*`` with the nodal depth
+   ``h_i = M_i/(ρ Σ_p A_p N_i)`` (the same exact Coulomb yield test as TG2's D step);
+   zero normal velocity on walls;
+3. G2P (eq. 38) ``v_p = Σ_i v_i N_i(x_p)``; the velocity gradient ``L_p`` of eq. 40 is taken
+   from the nodal velocity re-mapped from the updated particles (MUSL, Sulsky et al. 1995):
+   eq. 37's ``(p_i + Δt f_i)/M_i`` is unbounded at nodes with little mass, and its gradient
+   collapsed particle columns (``1 + tr Δε <= 0``) in viscous and wall-reflection runs;
+4. strain increment ``Δε_p = Δt sym(L_p)`` (eq. 40), depth
+   ``h_p /= 1 + tr Δε_p`` (eq. 42), stress ``σ_p = 2 μ_eff D_p`` (eqs. 3, 41; USL: updated last);
+   positions ``x_p += Δt v_p^{k+1}`` (eq. 39 with the updated velocity, cell-local);
+5. particles leaving through open sides are removed (their volume counted as outflow), the
+   others migrate to the rank owning their cell; P2G of the new state; projection of ``h, hu,
+   hv`` onto Q1 for the outputs (:mod:`mpm.projection`).
+
+Forces (eq. 34): body ``-m_p g ∇Z(x_p) N_i`` and effective stress ``-V_p σ^∇_p ∇N_i`` with
+``σ^∇ = σ - ½ ρ g h I`` (eq. 26). With a still-water depth ``H`` (a flat initial free surface)
+the well-balanced form of eq. 46 is used: pressure ``½ ρ g (h² - H²)`` and body
+``-ρ g A_p (h_p - H_p) ∇Z``, both exactly zero for a lake at rest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from fem_runout.mesh import Discretization
+from fem_runout.physics.friction import FrictionLaw
+from fem_runout.physics.rheology import Bingham
+from mpm.grid import Basis, ParticleGrid
+from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
+from mpm.migrate import migrate
+from mpm.particles import Particles
+from mpm.projection import GridProjector
+
+__all__ = ["COURANT", "MPMSolver"]
+
+#: Fraction of the cell crossing time ``Δx / max(|v_p| + sqrt(g h_p))`` given as the stable step.
+COURANT = 0.5
+#: Fraction of the explicit viscous limit ``ρ Δx² / (8 μ)`` of the Newtonian part.
+VISCOUS = 0.5
+
+
+class MPMSolver:
+    """Depth-averaged MPM with the solver interface of :mod:`fem_runout.solver_api`.
+
+    Args:
+        disc: The shared discretization.
+        grid: Particle location on it.
+        particles: The particles of this rank.
+        z: Nodal elevation (local, with ghosts).
+        density: ``ρ`` [kg/m³].
+        gravity: ``g`` [m/s²].
+        friction: Bed friction law or None.
+        rheology: Bingham rheology or None.
+        still_depth: Nodal still-water depth ``H`` (well-balanced eq. 46) or None.
+        flip: FLIP fraction of the particle velocity update (0: PIC, eq. 38 of the seed).
+    """
+
+    def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
+                 z: np.ndarray, density: float, gravity: float,
+                 friction: FrictionLaw | None = None, rheology: Bingham | None = None,
+                 still_depth: np.ndarray | None = None, flip: float = 0.0) -> None:
+        self.disc, self.grid, self.particles = disc, grid, particles
+        self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
+        self.rho, self.g = float(density), float(gravity)
+        self.friction, self.rheology, self.still_depth = friction, rheology, still_depth
+        self.flip = float(flip)
+        self.z = np.asarray(z, dtype=float)
+        self.fields = {k: fem.Function(disc.V, name=k) for k in ("h", "hu", "hv", "z")}
+        self.fields["z"].x.array[:] = self.z
+        self.projector = GridProjector(disc, grid.cell_nodes)
+        self.lumped_mass = self.projector.lumped_mass
+        self.outflow_volume = 0.0
+        self.sent = 0
+        self._problem: str | None = None
+        self.walls = [s for s in disc.sides if s.kind == "wall"]
+        self._refresh()
+
+    # -- solver interface ------------------------------------------------------------------
+    @property
+    def n_particles(self) -> int:
+        """Global number of particles."""
+        return int(self.comm.allreduce(len(self.particles), op=MPI.SUM))
+
+    def particle_volume(self) -> float:
+        """Global particle volume ``Σ_p V_p`` [m³] (collective)."""
+        return float(self.comm.allreduce(float(self.particles.volume.sum()), op=MPI.SUM))
+
+    def stable_dt(self) -> float:
+        """``COURANT Δx / max(|v_p| + sqrt(g h_p))``, and the explicit viscous limit."""
+        p = self.particles
+        speed = np.hypot(p.u, p.v) + np.sqrt(self.g * p.h)
+        top = self.comm.allreduce(float(speed.max(initial=0.0)), op=MPI.MAX)
+        dx = min(self.disc.spacing)
+        dt = COURANT * dx / top if top > 0 else np.inf
+        mu = self.rheology.viscosity if self.rheology is not None else 0.0
+        if mu > 0.0:  # the yield stress is bounded (|σ_Y| <= τ_Y): only μ limits the step
+            dt = min(dt, VISCOUS * self.rho * dx * dx / (8.0 * mu))
+        return dt
+
+    def advance(self, dt: float) -> None:
+        """One USL step (see the module docstring)."""
+        vx, vy = self._nodal_velocity(dt)
+        p, b = self.particles, self._basis
+        u, v, _ = g2p(b.nodes, b.N, b.dN, vx, vy)
+        if self.flip > 0.0:  # FLIP: the particles keep their velocity plus the nodal change
+            mass = self._nodal[:, 0]
+            safe = np.where(mass > 0.0, mass, 1.0)
+            du, dv, _ = g2p(b.nodes, b.N, b.dN, vx - self._nodal[:, 1] / safe,
+                            vy - self._nodal[:, 2] / safe)
+            u = self.flip * (p.u + du) + (1.0 - self.flip) * u
+            v = self.flip * (p.v + dv) + (1.0 - self.flip) * v
+        p.u, p.v = u, v
+        _, _, grad = g2p(b.nodes, b.N, b.dN, *self._remapped_velocity())
+        self._update_depth_and_stress(dt, grad)
+        self._move(dt * p.u, dt * p.v)
+        self.particles, self.sent = migrate(self.grid, self.particles)
+        self._refresh()
+
+    def snapshot(self) -> tuple[Particles, float]:
+        """Copy of the state."""
+        return self.particles.copy(), self.outflow_volume
+
+    def restore(self, snap: tuple[Particles, float]) -> None:
+        """Restore a :meth:`snapshot`."""
+        self.particles, self.outflow_volume = snap[0].copy(), snap[1]
+        self._problem = None
+        self._refresh()
+
+    def health(self) -> str | None:
+        """Return a message if a particle has NaN or a collapsed column, else None."""
+        local = self._problem or ""
+        p = self.particles
+        if not local and not all(np.isfinite(getattr(p, k)).all() for k in ("h", "u", "v")):
+            local = "the particle state has NaN or infinite values"
+        messages = [m for m in self.comm.allgather(local) if m]
+        return messages[0] if messages else None
+
+    # -- steps -----------------------------------------------------------------------------
+    def _nodal_velocity(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Nodal velocity at t + dt (eqs. 35-37), with implicit friction and walls."""
+        g = self._nodal
+        mass = g[:, 0]
+        active = mass > 0.0
+        safe = np.where(active, mass, 1.0)
+        vx = np.where(active, (g[:, 1] + dt * g[:, 3]) / safe, 0.0)
+        vy = np.where(active, (g[:, 2] + dt * g[:, 4]) / safe, 0.0)
+        for side in self.walls:  # the wall reaction first: friction acts along the wall
+            (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
+        if self.friction is not None:
+            h = np.where(active, mass / (self.rho * np.where(active, g[:, 5], 1.0)), 0.0)
+            qx, qy = self.friction.implicit_update(h, h * g[:, 1] / safe, h * g[:, 2] / safe,
+                                                   h * vx, h * vy, dt)
+            hs = np.where(h > 0, h, 1.0)
+            vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
+        return vx, vy
+
+    def _remapped_velocity(self) -> tuple[np.ndarray, np.ndarray]:
+        """MUSL: nodal velocity ``Σ_p m_p v_p^{k+1} N_i / M_i`` from the updated particles.
+
+        A mass-weighted average of particle velocities, so it stays bounded at nodes that
+        carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
+        """
+        p, b = self.particles, self._basis
+        n_nodes = self.disc.coords.shape[0]
+        mom = self.disc.nodal_sum(p2g_momentum(b.nodes, b.N, self.rho * p.volume, p.u, p.v,
+                                               n_nodes))
+        mass = self._nodal[:, 0]
+        safe = np.where(mass > 0.0, mass, 1.0)
+        vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
+        vy = np.where(mass > 0, mom[:, 1] / safe, 0.0)
+        for side in self.walls:
+            (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
+        return vx, vy
+
+    def _update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
+        """Depth (eq. 42) and stress (eqs. 40-41) from the grid velocity gradient."""
+        p = self.particles
+        factor = 1.0 + dt * (grad[:, 0, 0] + grad[:, 1, 1])
+        if factor.size and factor.min() <= 0.0:
+            self._problem = "a particle column collapsed (1 + tr Δε <= 0); reduce time.cfl"
+            factor = np.maximum(factor, 1e-300)
+        p.h = p.h / factor
+        if self.rheology is None:
+            return
+        mu = self.rheology.effective_viscosity(p.h, p.u, p.v, grad)
+        d = 0.5 * (grad + np.swapaxes(grad, 1, 2))
+        p.sxx, p.syy, p.sxy = 2.0 * mu * d[:, 0, 0], 2.0 * mu * d[:, 1, 1], 2.0 * mu * d[:, 0, 1]
+
+    def _move(self, dx: np.ndarray, dy: np.ndarray) -> None:
+        """Move the particles (eq. 39 with v^{k+1}); open sides remove, walls stop them."""
+        p, grid = self.particles, self.grid
+        if not (np.isfinite(dx).all() and np.isfinite(dy).all()):
+            self._problem = "the particle velocity has NaN or infinite values"
+            return
+        i, j, p.xi, p.eta = grid.move(p.cell, p.xi, p.eta, dx, dy)
+        kinds = {s.name: s.kind for s in self.disc.sides}
+        out = np.zeros(len(p), dtype=bool)
+        for name, idx, ref, past, edge in (("left", i, p.xi, i < 0, 0),
+                                           ("right", i, p.xi, i >= grid.nx, grid.nx - 1),
+                                           ("bottom", j, p.eta, j < 0, 0),
+                                           ("top", j, p.eta, j >= grid.ny, grid.ny - 1)):
+            if kinds[name] == "open":
+                out |= past
+            else:
+                idx[past] = edge
+                ref[past] = 0.0 if edge == 0 else 1.0
+        p.cell = j * grid.nx + i
+        left = float(p.volume[out].sum())
+        self.outflow_volume += self.comm.allreduce(left, op=MPI.SUM)
+        if out.any():
+            self.particles = p.select(~out)
+
+    def _refresh(self) -> None:
+        """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
+        p = self.particles
+        b = self.grid.basis(p.cell, p.xi, p.eta)
+        self._basis = b
+        n_nodes = self.disc.coords.shape[0]
+        body, tensor = self._forces(b)
+        mass = self.rho * p.volume
+        local = p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
+                    tensor[2], p.area, p.volume, n_nodes)
+        self._nodal = self.disc.nodal_sum(local)
+        fields = self.projector.project(self._nodal[:, 6:9])
+        for k, name in enumerate(("h", "hu", "hv")):
+            self.fields[name].x.array[:] = fields[:, k]
+
+    def _forces(self, b: Basis) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
+        """Body force (× N_i) and force tensor ``-V_p σ^∇_p`` (× ∇N_i) per particle."""
+        p, rho, g = self.particles, self.rho, self.g
+        grad_z = interpolate_gradient(b.nodes, b.dN, self.z)
+        if self.still_depth is None:
+            weight = rho * g * p.volume  # eq. 34: -m_p g ∇Z
+            pressure = 0.5 * rho * g * p.volume * p.h  # eq. 26: ½ ρ g h V_p
+        else:
+            big_h = interpolate(b.nodes, b.N, self.still_depth)
+            weight = rho * g * p.area * (p.h - big_h)  # eq. 46: -ρ g (h - H) ∇Z
+            pressure = 0.5 * rho * g * p.area * (p.h * p.h - big_h * big_h)
+        body = (-weight * grad_z[:, 0], -weight * grad_z[:, 1])
+        tensor = (pressure - p.volume * p.sxx, pressure - p.volume * p.syy, -p.volume * p.sxy)
+        return body, tensor
