@@ -7,23 +7,23 @@ carries whole cells into ``i`` (:meth:`ParticleGrid.move`). Two dense tables, bu
 the structured index into the local DOLFINx cell (owned cells only) and into the rank that
 owns the cell (for migration).
 
-The Q1 basis at the particles is tabulated by basix (the element of the state space) at
-``(ξ, η)``. Basix orders the four vertex dofs ``(0,0), (1,0), (0,1), (1,1)``; ``cell_nodes``
-holds every cell's local dofs in that order (the DOLFINx dofmap order of a cell need not be).
+The Q1 basis at the particles is the basix P1 quadrilateral element of the state space at
+``(ξ, η)``, in basix's dof order ``(0,0), (1,0), (0,1), (1,1)``; ``cell_nodes`` holds every
+cell's local dofs in that order (the DOLFINx dofmap order of a cell need not be). It is
+evaluated by :func:`bilinear_basis`, a numba kernel of the closed form that equals
+``basix.tabulate`` to round-off (tested) and is ~5× faster for 5e5 particles.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import basix
+import numba
 import numpy as np
 
 from fem_runout.mesh import Discretization
 
-__all__ = ["Basis", "ParticleGrid"]
-
-_ELEMENT = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+__all__ = ["Basis", "ParticleGrid", "bilinear_basis"]
 
 
 @dataclass
@@ -41,6 +41,26 @@ class Basis:
     nodes: np.ndarray
     N: np.ndarray
     dN: np.ndarray
+
+
+@numba.njit(cache=True)
+def bilinear_basis(xi, eta, dx, dy):
+    """Q1 values ``(n, 4)`` and physical gradients ``(n, 4, 2)`` at reference points.
+
+    Dof order of basix's P1 quadrilateral: ``(0,0), (1,0), (0,1), (1,1)``.
+    """
+    n = xi.size
+    N = np.empty((n, 4))
+    dN = np.empty((n, 4, 2))
+    for p in range(n):
+        a, b = xi[p], eta[p]
+        N[p, 0], N[p, 1] = (1.0 - a) * (1.0 - b), a * (1.0 - b)
+        N[p, 2], N[p, 3] = (1.0 - a) * b, a * b
+        dN[p, 0, 0], dN[p, 0, 1] = -(1.0 - b) / dx, -(1.0 - a) / dy
+        dN[p, 1, 0], dN[p, 1, 1] = (1.0 - b) / dx, -a / dy
+        dN[p, 2, 0], dN[p, 2, 1] = -b / dx, (1.0 - a) / dy
+        dN[p, 3, 0], dN[p, 3, 1] = b / dx, a / dy
+    return N, dN
 
 
 class ParticleGrid:
@@ -101,7 +121,7 @@ class ParticleGrid:
             eta: (n,) second reference coordinate in the cells.
 
         Returns:
-            The :class:`Basis` (basix tabulation at the reference coordinates).
+            The :class:`Basis` at the reference coordinates.
 
         Raises:
             ValueError: If a particle is not in a cell owned by this rank.
@@ -109,13 +129,9 @@ class ParticleGrid:
         cells = self.local_cell[cell]
         if cells.size and cells.min() < 0:
             raise ValueError("a particle lies outside the cells owned by this rank")
-        ref = np.empty((cell.size, 2))
-        ref[:, 0], ref[:, 1] = xi, eta
-        tab = _ELEMENT.tabulate(1, ref)  # (3, n, 4, 1)
-        dN = np.empty((cell.size, 4, 2))
-        dN[:, :, 0] = tab[1, :, :, 0] / self.dx
-        dN[:, :, 1] = tab[2, :, :, 0] / self.dy
-        return Basis(cells, self.cell_nodes[cells], np.ascontiguousarray(tab[0, :, :, 0]), dN)
+        N, dN = bilinear_basis(np.ascontiguousarray(xi, dtype=float),
+                               np.ascontiguousarray(eta, dtype=float), self.dx, self.dy)
+        return Basis(cells, self.cell_nodes[cells], N, dN)
 
     def owned_cells(self) -> np.ndarray:
         """Structured indices of the cells this rank owns (local cell order)."""

@@ -40,6 +40,18 @@ def test_basis_is_the_bilinear_q1_basis_of_the_cell(grid):
     assert np.abs(b.N.sum(axis=1) - 1.0).max() < 1e-15
 
 
+def test_closed_form_basis_equals_basix_tabulation(grid):
+    import basix
+
+    cell, xi, eta = _random_particles(grid, 300, seed=3)
+    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+    tab = element.tabulate(1, np.column_stack([xi, eta]))
+    b = grid.basis(cell, xi, eta)
+    assert np.abs(b.N - tab[0, :, :, 0]).max() < 1e-15
+    assert np.abs(b.dN[:, :, 0] * grid.dx - tab[1, :, :, 0]).max() < 1e-14
+    assert np.abs(b.dN[:, :, 1] * grid.dy - tab[2, :, :, 0]).max() < 1e-14
+
+
 def test_move_carries_whole_cells(grid):
     cell = np.array([0, 0, grid.nx + 2])
     i, j, xi, eta = grid.move(cell, np.array([0.5, 0.5, 0.25]), np.array([0.5, 0.5, 0.5]),

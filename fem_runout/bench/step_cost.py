@@ -1,9 +1,10 @@
-"""TG2-PC wall time per step on an N x N mesh, serially and on 2 MPI ranks.
+"""Wall time per step on N x N meshes (TG2-PC or DAMPM), serially and on 2 MPI ranks.
 
 Usage::
 
-    python -m fem_runout.bench step-cost [--cells 250] [--steps 30] [--out docs/step_cost.md]
-                                         [--ranks 1 2] [--profile]
+    python -m fem_runout.bench step-cost [--cells 250 ...] [--steps 30] [--ranks 1 2]
+                                         [--method tg2|mpm] [--set KEY=VALUE ...]
+                                         [--out docs/step_cost.md] [--profile]
 
 The driver does not import dolfinx. For each rank count it starts a worker,
 ``python -m fem_runout.bench step-cost --worker`` (serially for 1 rank, under
@@ -33,7 +34,7 @@ from typing import Any
 
 __all__ = ["HELP", "add_arguments", "format_report", "machine_info", "main", "measure"]
 
-HELP = "TG2-PC wall time per step on an N x N mesh (serial and 2 MPI ranks)"
+HELP = "wall time per step on N x N meshes, TG2-PC or DAMPM (serial and 2 MPI ranks)"
 RESULT_TAG = "STEP_COST_RESULT "
 WARMUP_STEPS = 3
 PROFILE_TOP = 15
@@ -43,7 +44,11 @@ THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREAD
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``step-cost`` options to ``parser``."""
-    parser.add_argument("--cells", type=int, default=250, metavar="N", help="N x N cells (250)")
+    parser.add_argument("--cells", type=int, nargs="+", default=[250], metavar="N",
+                        help="N x N cells, one or more N (250)")
+    parser.add_argument("--method", choices=("tg2", "mpm"), default="tg2", help="method (tg2)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="case override (repeatable)")
     parser.add_argument("--steps", type=int, default=30, help="timed steps per run (30)")
     parser.add_argument(
         "--out", type=Path, default=Path("docs/step_cost.md"), help="markdown report to write"
@@ -65,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the driver, or a worker with ``--worker``; return the exit code."""
-    if args.cells < 1 or args.steps < 1 or any(r < 1 for r in args.ranks):
+    if min(args.cells) < 1 or args.steps < 1 or any(r < 1 for r in args.ranks):
         print("error: --cells, --steps and --ranks must be positive", file=sys.stderr)
         return 2
     if not args.case.is_file():
@@ -77,13 +82,14 @@ def main(args: argparse.Namespace) -> int:
 # --- worker (runs under MPI, imports dolfinx) ---------------------------------------------
 
 
-def build_solver(case_path: Path, n: int, comm: Any) -> Any:
-    """Build the TG2-PC solver of ``case_path`` on an ``n`` x ``n`` mesh (collective)."""
+def build_solver(case_path: Path, n: int, comm: Any, method: str = "tg2",
+                 overrides: list[str] | None = None) -> Any:
+    """Build the solver of ``case_path`` on an ``n`` x ``n`` mesh (collective)."""
+    from fem_runout.api import build_solver as build
     from fem_runout.config import load_case
-    from fem_runout.tg2.solver import build_tg2
 
-    case = load_case(case_path, overrides=[f"domain.cells=[{n},{n}]"])
-    return build_tg2(case, comm)
+    extra = [f"domain.cells=[{n},{n}]", f"method={method}", *(overrides or [])]
+    return build(load_case(case_path, overrides=extra), comm)
 
 
 def _advance(solver: Any, steps: int) -> None:
@@ -132,17 +138,21 @@ def run_worker(args: argparse.Namespace) -> int:
     import dolfinx
 
     comm = MPI.COMM_WORLD
-    solver = build_solver(args.case, args.cells, comm)
+    n = args.cells[0]
+    solver = build_solver(args.case, n, comm, args.method, args.set)
     _advance(solver, WARMUP_STEPS)
     seconds = measure(solver, args.steps, comm)
     text = profile(solver, args.steps, comm) if args.profile else None
+    particles = getattr(solver, "n_particles", None)  # collective
     if comm.rank == 0:
         if text is not None:
             print(f"cProfile of rank 0 of {comm.size}, {args.steps} steps:\n{text}", flush=True)
         result = {
             "ranks": comm.size,
-            "n": args.cells,
-            "cells": args.cells**2,
+            "n": n,
+            "cells": n**2,
+            "method": args.method,
+            "particles": particles,
             "steps": args.steps,
             "seconds_per_step": seconds,
             "dolfinx": dolfinx.__version__,
@@ -165,24 +175,26 @@ def _mpiexec() -> str:
     return found
 
 
-def worker_command(ranks: int, args: argparse.Namespace) -> list[str]:
-    """Return the command line of a worker on ``ranks`` ranks."""
+def worker_command(ranks: int, args: argparse.Namespace, n: int) -> list[str]:
+    """Return the command line of a worker on ``ranks`` ranks and ``n`` x ``n`` cells."""
     command = [sys.executable, "-m", "fem_runout.bench", "step-cost", "--worker"]
-    command += ["--cells", str(args.cells), "--steps", str(args.steps)]
+    command += ["--cells", str(n), "--steps", str(args.steps), "--method", args.method]
+    for item in args.set:
+        command += ["--set", item]
     command += ["--case", str(args.case.resolve())]
     if args.profile:
         command.append("--profile")
     return command if ranks == 1 else [_mpiexec(), "-n", str(ranks), *command]
 
 
-def run_one(ranks: int, args: argparse.Namespace) -> dict[str, Any]:
-    """Run a worker on ``ranks`` ranks; relay its other output; return its result.
+def run_one(ranks: int, args: argparse.Namespace, n: int) -> dict[str, Any]:
+    """Run a worker on ``ranks`` ranks and ``n`` x ``n`` cells; return its result.
 
     Raises:
         RuntimeError: If the worker fails or prints no result.
     """
     env = {**os.environ, **dict.fromkeys(THREAD_VARIABLES, "1")}
-    command = worker_command(ranks, args)
+    command = worker_command(ranks, args, n)
     done = subprocess.run(
         command, env=env, stdout=subprocess.PIPE, text=True, timeout=args.timeout, check=False
     )
@@ -238,18 +250,24 @@ def machine_info() -> dict[str, Any]:
 
 def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: str) -> str:
     """Return the markdown report: the table, then the machine and how it was measured."""
-    n, steps = results[0]["n"], results[0]["steps"]
+    steps, method = results[0]["steps"], results[0].get("method", "tg2")
+    sizes = " ".join(sorted({str(r["n"]) for r in results}, key=int))
     rows = [
-        "| ranks | cells | ms/step | µs/cell/step |",
-        "|------:|------:|--------:|-------------:|",
+        "| ranks | cells | particles | ms/step | µs/cell/step | µs/particle/step |",
+        "|------:|------:|----------:|--------:|-------------:|-----------------:|",
     ]
     for r in results:
         ms, us = 1e3 * r["seconds_per_step"], 1e6 * r["seconds_per_step"] / r["cells"]
-        rows.append(f"| {r['ranks']} | {r['cells']} | {ms:.1f} | {us:.3f} |")
-    ranks = " ".join(str(r["ranks"]) for r in results)
+        npart = r.get("particles")
+        per_p = f"{1e6 * r['seconds_per_step'] / npart:.3f}" if npart else "–"
+        rows.append(f"| {r['ranks']} | {r['cells']} | {npart or '–'} | {ms:.1f} | {us:.3f} | "
+                    f"{per_p} |")
+    ranks = " ".join(sorted({str(r["ranks"]) for r in results}, key=int))
+    title = {"tg2": "TG2-PC", "mpm": "DAMPM"}.get(method, method)
+    sets = "".join(f" --set '{item}'" for item in results[0].get("overrides", []))
     return "\n".join(
         [
-            "# TG2-PC cost per time step",
+            f"# {title} cost per time step",
             "",
             *rows,
             "",
@@ -259,7 +277,7 @@ def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: 
             "",
             "## How it is measured",
             "",
-            f"Case `{case}` on a {n} x {n} mesh ({n * n} cells). Each rank count runs in a fresh "
+            f"Case `{case}` on N x N meshes (N = {sizes}). Each rank count runs in a fresh "
             f"process (`mpiexec -n R` for R > 1): build the solver, {WARMUP_STEPS} warm-up steps "
             f"(numba JIT, form compilation), then {steps} timed calls of "
             "`solver.advance(0.9 * solver.stable_dt())`, `stable_dt` included, no output. "
@@ -269,8 +287,8 @@ def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: 
             "Reproduce (add `--profile` for a cProfile top-15 of rank 0):",
             "",
             "```bash",
-            f".venv/bin/python -m fem_runout.bench step-cost --cells {n} --steps {steps} "
-            f"--ranks {ranks}",
+            f".venv/bin/python -m fem_runout.bench step-cost --method {method} --cells {sizes} "
+            f"--steps {steps} --ranks {ranks}{sets}",
             "```",
             "",
         ]
@@ -287,13 +305,14 @@ def _display_path(path: Path) -> str:
 def run_driver(args: argparse.Namespace) -> int:
     """Run every rank count, print and write the report."""
     results = []
-    for ranks in args.ranks:
-        print(f"step-cost: {ranks} rank(s), {args.cells} x {args.cells} cells ...", flush=True)
-        try:
-            results.append(run_one(ranks, args))
-        except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 1
+    for n in args.cells:
+        for ranks in args.ranks:
+            print(f"step-cost: {args.method}, {ranks} rank(s), {n} x {n} cells ...", flush=True)
+            try:
+                results.append({**run_one(ranks, args, n), "overrides": args.set})
+            except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return 1
     report = format_report(results, machine_info(), _display_path(args.case))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(report, encoding="utf-8")
