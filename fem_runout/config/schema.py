@@ -16,7 +16,15 @@ import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
 from fem_runout.config.expr import Expression, compile_expression
-from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, is_number
+from fem_runout.config.geo import (
+    ReleaseArea,
+    TerrainSpec,
+    expand_data_path,
+    parse_release,
+    parse_window,
+)
+from fem_runout.config.timing import TimeSpec
+from fem_runout.config.types import Bool, Expr, Real, SpecError, is_number
 
 __all__ = [
     "BoundarySides",
@@ -27,6 +35,7 @@ __all__ = [
     "MaterialSpec",
     "NumericsSpec",
     "OutputSpec",
+    "ReleaseArea",
     "RheologySpec",
     "SpecError",
     "TerrainSpec",
@@ -63,6 +72,8 @@ def _boundary(value: Any) -> Any:
 
 
 def _extent(value: Any) -> Any:
+    if value is None:
+        return value
     ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(is_number, value))
     if not ok or not all(math.isfinite(v) for v in value):
         raise SpecError(f"must be four numbers [xmin, xmax, ymin, ymax], got {value!r}")
@@ -83,22 +94,32 @@ def _cells(value: Any) -> Any:
 class DomainSpec(_Spec):
     """The rectangle, its structured mesh and its boundary conditions.
 
+    With ``terrain.dem`` the extent defaults to the DEM's (``window`` picks a part of it) and
+    the cell size to the DEM resolution; both are filled in when the case is loaded, with the
+    nodes on DEM cell centres.
+
     Attributes:
         extent: ``(xmin, xmax, ymin, ymax)`` [m].
+        window: Part of the DEM to simulate, ``(xmin, xmax, ymin, ymax)`` [m] (DEM only).
         cells: Number of cells along x and y (or ``None`` when ``cell_size`` is given).
         cell_size: Target cell size [m] (or ``None`` when ``cells`` is given).
         boundary: Kind of each side.
     """
 
-    extent: Annotated[tuple[float, float, float, float], BeforeValidator(_extent)]
+    extent: Annotated[tuple[float, float, float, float] | None, BeforeValidator(_extent)] = None
+    window: Annotated[tuple[float, float, float, float] | None, BeforeValidator(parse_window)] = (
+        None
+    )
     cells: Annotated[tuple[int, int] | None, BeforeValidator(_cells)] = None
     cell_size: Real | None = Field(None, gt=0)
     boundary: Annotated[BoundarySides, BeforeValidator(_boundary)] = BoundarySides()
 
     @model_validator(mode="after")
     def _one_resolution(self) -> DomainSpec:
-        if (self.cells is None) == (self.cell_size is None):
+        if self.cells is not None and self.cell_size is not None:
             raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>")
+        if self.extent is not None and self.window is not None:
+            raise SpecError("give either extent or window, not both", "window")
         return self
 
     @property
@@ -106,7 +127,7 @@ class DomainSpec(_Spec):
         """Number of cells ``(nx, ny)``, from ``cells`` or from ``cell_size`` (at least 1)."""
         if self.cells is not None:
             return self.cells
-        assert self.cell_size is not None
+        assert self.cell_size is not None and self.extent is not None, "case not resolved"
         xmin, xmax, ymin, ymax = self.extent
         return (
             max(1, round((xmax - xmin) / self.cell_size)),
@@ -119,16 +140,6 @@ class DomainSpec(_Spec):
         return {side: getattr(self.boundary, side) for side in SIDES}
 
 
-class TerrainSpec(_Spec):
-    """Terrain elevation ``z(x, y)`` [m]."""
-
-    elevation: Expr = "0"
-
-    def elevation_fn(self) -> Expression:
-        """Return the compiled elevation expression."""
-        return compile_expression(self.elevation, "terrain.elevation")
-
-
 def _velocity(value: Any) -> Any:
     if not isinstance(value, list | tuple) or len(value) != 2:
         raise SpecError(f"must be two expressions [u, v], got {value!r}")
@@ -136,16 +147,18 @@ def _velocity(value: Any) -> Any:
 
 
 class InitialSpec(_Spec):
-    """Initial state: flow depth ``h`` [m] or free surface ``h + z`` [m], and velocity [m/s]."""
+    """Initial state: depth ``h``, free surface ``h + z`` or release areas [m]; velocity [m/s]."""
 
     depth: Expr | None = None
     free_surface: Expr | None = None
+    release: Annotated[tuple[ReleaseArea, ...] | None, BeforeValidator(parse_release)] = None
     velocity: Annotated[tuple[Expr, Expr], BeforeValidator(_velocity)] = ("0", "0")
 
     @model_validator(mode="after")
     def _one_state(self) -> InitialSpec:
-        if (self.depth is None) == (self.free_surface is None):
-            raise SpecError("give exactly one of depth or free_surface")
+        given = [self.depth, self.free_surface, self.release]
+        if sum(v is not None for v in given) != 1:
+            raise SpecError("give exactly one of depth, free_surface or release")
         return self
 
     def depth_fn(self) -> Expression | None:
@@ -249,15 +262,6 @@ class MaterialSpec(_Spec):
     rheology: RheologySpec = RheologySpec()
 
 
-class TimeSpec(_Spec):
-    """End time [s], CFL number and optional step limits."""
-
-    end: Real = Field(gt=0)
-    cfl: Real = Field(0.9, gt=0, le=1)
-    max_steps: Int | None = Field(None, gt=0)
-    dt_max: Real | None = Field(None, gt=0)
-
-
 class OutputSpec(_Spec):
     """Where and how often to write results.
 
@@ -269,6 +273,8 @@ class OutputSpec(_Spec):
     front_threshold: Real = Field(1e-3, gt=0)
     pictures: Bool = True
     vtk: Bool = False  # also write fields.pvd (VTK XML, readable by pyvista/VTK without ADIOS2)
+    hazard: Bool = True  # hazard maps (GeoTIFF) and summary.json
+    ascii: Bool = False  # hazard maps also as ESRI ASCII grids
 
 
 class NumericsSpec(_Spec):
@@ -303,6 +309,8 @@ def _fill_output(data: dict[str, Any]) -> dict[str, Any]:
         output["dir"] = f"results/{name}"
     time = data.get("time")
     end = time.get("end") if isinstance(time, dict) else None
+    if end == "auto":
+        end = time.get("max")
     if output.get("every") is None and is_number(end) and math.isfinite(end) and end > 0:
         output["every"] = end / 10
     return {**data, "output": output}
@@ -343,6 +351,18 @@ class Case(_Spec):
     def _defaults_from_other_keys(cls, data: Any) -> Any:
         return _fill_output(data) if isinstance(data, dict) else data
 
+    @model_validator(mode="after")
+    def _domain_needs_dem(self) -> Case:
+        d = self.domain
+        if self.terrain.dem is None:
+            if d.extent is None:
+                raise SpecError("required key is missing (or give terrain.dem)", "domain.extent")
+            if d.window is not None:
+                raise SpecError("only used with terrain.dem", "domain.window")
+            if d.cells is None and d.cell_size is None:
+                raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>", "domain")
+        return self
+
     def __eq__(self, other: object) -> bool:
         """Equal when all fields are equal (``source_dir`` is ignored)."""
         if not isinstance(other, Case):
@@ -367,8 +387,9 @@ class Case(_Spec):
         """Resolve an input file path; relative paths are relative to the case file folder.
 
         Without a case file, relative paths are relative to the current working directory.
+        ``${FEM_RUNOUT_DATA}`` expands to the data folder (``geo.data_folder``).
         """
-        p = Path(path).expanduser()
+        p = Path(expand_data_path(str(path))).expanduser()
         if p.is_absolute():
             return p
         return (self._source_dir or Path.cwd()) / p
@@ -379,7 +400,12 @@ class Case(_Spec):
         return Path(self.output.dir or f"results/{self.name}")
 
     def initial_depth(self, x: Any, y: Any) -> np.ndarray:
-        """Return the initial depth: ``depth``, or ``max(free_surface - elevation, 0)``."""
+        """Return the initial depth: ``depth``, ``max(free_surface - elevation, 0)`` or release."""
+        if self.initial.release is not None:
+            from fem_runout.terrain.nodes import release_depth
+
+            xa, ya = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+            return release_depth(self, xa.ravel(), ya.ravel()).reshape(xa.shape)
         depth = self.initial.depth_fn()
         if depth is not None:
             return depth(x, y)

@@ -1,0 +1,90 @@
+"""Map pictures of a run: a hillshade map (matplotlib) and a 3D view of the deposit (pyvista)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from fem_runout.output.pictures import render_depth
+
+__all__ = ["draw_maps", "hillshade", "plot_hazard_map"]
+
+
+def hillshade(z: np.ndarray, dx: float, dy: float, azimuth: float = 315.0,
+              altitude: float = 45.0) -> np.ndarray:
+    """Hillshade in [0, 1] of a grid with rows of increasing y (sun from the north-west)."""
+    gy, gx = np.gradient(z, dy, dx)
+    slope = np.arctan(np.hypot(gx, gy))
+    aspect = np.arctan2(-gx, gy)
+    az, alt = np.radians(azimuth), np.radians(altitude)
+    shade = np.sin(alt) * np.cos(slope) + np.cos(alt) * np.sin(slope) * np.cos(az - aspect)
+    return np.clip(shade, 0.0, 1.0)
+
+
+def plot_hazard_map(g: dict[str, np.ndarray], extent: tuple[float, float, float, float],
+                    path: Path, title: str, threshold: float) -> Path:
+    """Hillshade, peak flow depth, the release outline (red) and the deposit outline (black).
+
+    Args:
+        g: Node grids (rows of increasing y): ``x, y, z, h0, peak_depth, h``.
+        extent: ``(xmin, xmax, ymin, ymax)``.
+        path: PNG to write.
+        title: Figure title.
+        threshold: Depth [m] above which a node counts as reached / released / deposited.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    ny, nx = g["z"].shape[0] - 1, g["z"].shape[1] - 1
+    dx, dy = (extent[1] - extent[0]) / nx, (extent[3] - extent[2]) / ny
+    ratio = (extent[3] - extent[2]) / (extent[1] - extent[0])
+    fig = Figure(figsize=(7.5, max(4.0, min(12.0, 6.5 * ratio + 1.0))), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    kw = {"origin": "lower", "extent": extent}
+    ax.imshow(hillshade(g["z"], dx, dy), cmap="gray", vmin=0, vmax=1, **kw)
+    peak = np.ma.masked_less_equal(g["peak_depth"], threshold)
+    im = ax.imshow(peak, cmap="viridis", alpha=0.85, **kw)
+    fig.colorbar(im, ax=ax, label="peak flow depth [m]", shrink=0.8)
+    handles = []
+    for key, colour, label in (("h0", "red", "release"), ("h", "black", "deposit")):
+        if (g[key] > threshold).any():
+            ax.contour(g["x"], g["y"], (g[key] > threshold).astype(float), levels=[0.5],
+                       colors=colour, linewidths=1.2)
+            handles.append(Line2D([], [], color=colour, label=label))
+    if handles:
+        ax.legend(handles=handles, loc="upper right", fontsize=8)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.tick_params(labelsize=7)
+    ax.set_title(title, fontsize=10)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def draw_maps(g: dict[str, np.ndarray], extent: tuple[float, float, float, float],
+              out_dir: Path, name: str, threshold: float, t: float) -> list[Path]:
+    """Draw ``hazard_map.png`` and ``deposit_3d.png`` (a failure is a warning, not an error)."""
+    ny, nx = g["z"].shape[0] - 1, g["z"].shape[1] - 1
+    jobs = [
+        ("hazard_map.png", lambda p: plot_hazard_map(
+            g, extent, p, f"{name}: peak flow depth, release and deposit", threshold)),
+        ("deposit_3d.png", lambda p: render_depth(
+            g["x"].ravel(), g["y"].ravel(), g["z"].ravel(), g["h"].ravel(), nx, ny, p,
+            threshold, f"{name}: deposit at t = {t:.4g} s", "deposit depth [m]")),
+    ]
+    written = []
+    for file, job in jobs:
+        try:
+            path = job(out_dir / file)
+        except (ImportError, RuntimeError, OSError, ValueError) as err:
+            warnings.warn(f"could not draw {file}: {err}", stacklevel=2)
+            continue
+        if path is not None:
+            written.append(Path(path))
+    return written
