@@ -10,12 +10,12 @@ import numpy as np
 X0, Y1, RES = 1000.0, 2000.0, 5.0  # west edge, north edge, pixel size [m]
 
 
-def plane(rows: int = 16, cols: int = 20, slope: float = 0.3) -> np.ndarray:
+def plane(rows: int = 16, cols: int = 20, slope: float = 0.3, bump: float = 2.0) -> np.ndarray:
     """Elevation of a plane falling towards +x plus a small bump (row 0 is the north)."""
     xc = X0 + RES * (np.arange(cols) + 0.5)
     yc = Y1 - RES * (np.arange(rows) + 0.5)
     x, y = np.meshgrid(xc, yc)
-    return 100.0 - slope * (x - X0) + 2.0 * np.exp(-((x - 1040) ** 2 + (y - 1960) ** 2) / 200)
+    return 100.0 - slope * (x - X0) + bump * np.exp(-((x - 1040) ** 2 + (y - 1960) ** 2) / 200)
 
 
 def write_dem(path: Path, z: np.ndarray, crs: str | None = "EPSG:31287",
