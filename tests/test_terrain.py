@@ -145,3 +145,23 @@ def test_schema_rules(tmp_path: Path, rel: Path) -> None:
         load_case(dem_case(dem, time={"end": "auto", "max": None}))
     with pytest.raises(CaseError, match="initial: give exactly one of depth, free_surface or"):
         load_case(dem_case(dem, initial={"depth": "1"}))
+
+
+AVAKOT = data_folder() / "avaKot"
+
+
+@pytest.mark.skipif(not AVAKOT.is_dir(), reason="avaKot data not found (FEM_RUNOUT_DATA)")
+def test_avakot_case() -> None:
+    case = load_case(ROOT / "cases" / "avakot.yaml")
+    nx, ny = case.domain.resolved_cells
+    assert (nx, ny) == (219, 258) and 5.5e4 < (nx + 1) * (ny + 1) < 6.5e4
+    assert case.terrain.crs == "EPSG:31287"
+    dem = read_raster(case.resolve_input(case.terrain.dem), "t", True)
+    xc, yc = dem.centres()
+    step = dem.res[0]
+    assert case.domain.extent == (xc[0], xc[0] + 438 * step, yc[-1], yc[-1] + 516 * step)
+    x, y = np.meshgrid(np.linspace(*case.domain.extent[:2], nx + 1),
+                       np.linspace(*case.domain.extent[2:], ny + 1))
+    h = case.initial_depth(x, y)
+    area = np.full((ny + 1, nx + 1), case.domain.cell_size**2)
+    assert (h * area).sum() == pytest.approx(15188.05685224, rel=1e-9)  # polygon area x 1.0 m
