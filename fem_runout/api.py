@@ -134,6 +134,10 @@ def run(
     comm = comm or MPI.COMM_WORLD
     if not isinstance(case, Case):
         case = load_case(case)
+    elif case.terrain.dem is not None and case.domain.extent is None:
+        from fem_runout.terrain.resolve import resolve_terrain
+
+        case = resolve_terrain(case)  # a Case built without load_case
     solver = build_solver(case, comm)
     out = _prepare_out_dir(case, comm, overwrite) if write else None
     thr = case.output.front_threshold
