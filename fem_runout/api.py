@@ -156,7 +156,7 @@ def run(
     callbacks.append(hazard)
     t = case.time
     schedule = Schedule(t.end_time, t.cfl, case.output.every, t.max_steps, t.dt_max,
-                        t.rest_speed if t.auto else None, t.rest_duration, thr)
+                        t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy)
     if not quiet:
         _say_released(solver, comm)
     progress = _Progress(t.end_time, case.name) if (not quiet and comm.rank == 0) else None

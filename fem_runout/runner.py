@@ -31,6 +31,8 @@ class Schedule:
         rest_speed: Stop once the largest speed stays below this [m/s] (None: run to end).
         rest_duration: ... for this long [s].
         rest_depth: Only nodes deeper than this [m] count for the largest speed.
+        rest_energy: Also at rest when the kinetic energy is below this fraction of its peak
+            (None: speed criterion only).
     """
 
     end: float
@@ -41,17 +43,32 @@ class Schedule:
     rest_speed: float | None = None
     rest_duration: float = 0.0
     rest_depth: float = 1e-3
+    rest_energy: float | None = None
 
 
 def max_speed(solver: Solver, depth: float) -> float:
     """Largest nodal speed ``|(hu, hv)| / h`` over nodes with ``h > depth`` (collective)."""
+    return motion(solver, depth)[0]
+
+
+def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, float]:
+    """Largest speed and (if ``energy``) ``Σ M |q|² / h`` over nodes deeper than ``depth``.
+
+    The second value is twice the kinetic energy divided by the density (0 if not asked).
+    Collective: one max reduction, plus one sum reduction with ``energy``.
+    """
     from mpi4py import MPI
 
     n = solver.V.dofmap.index_map.size_local
     h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
     wet = h > depth
-    local = float(np.max(np.hypot(hu[wet], hv[wet]) / h[wet])) if wet.any() else 0.0
-    return float(solver.comm.allreduce(local, op=MPI.MAX))
+    q2 = hu[wet] ** 2 + hv[wet] ** 2
+    speed = float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0
+    speed = float(solver.comm.allreduce(speed, op=MPI.MAX))
+    if not energy:
+        return speed, 0.0
+    local = float(np.sum(np.asarray(solver.lumped_mass[:n])[wet] * q2 / h[wet]))
+    return speed, float(solver.comm.allreduce(local, op=MPI.SUM))
 
 
 class Runner:
@@ -75,6 +92,7 @@ class Runner:
         self.wall_time = 0.0
         self.at_rest = False
         self._rest_since: float | None = None
+        self._peak_energy = 0.0
 
     def _call(self, hook: str, info: StepInfo) -> None:
         for cb in self.callbacks:
@@ -125,11 +143,18 @@ class Runner:
         return info
 
     def _came_to_rest(self, info: StepInfo) -> bool:
-        """Whether the flow has been at rest for ``rest_duration`` (collective, no I/O)."""
+        """Whether the flow has been at rest for ``rest_duration`` (collective, no I/O).
+
+        At rest: the largest speed is below ``rest_speed``, or (with ``rest_energy``) the
+        kinetic energy is below ``rest_energy`` times its peak so far.
+        """
         s = self.schedule
         if s.rest_speed is None:
             return False
-        if max_speed(self.solver, s.rest_depth) >= s.rest_speed:
+        speed, energy = motion(self.solver, s.rest_depth, s.rest_energy is not None)
+        self._peak_energy = max(self._peak_energy, energy)
+        slow = s.rest_energy is not None and energy < s.rest_energy * self._peak_energy
+        if speed >= s.rest_speed and not slow:
             self._rest_since = None
             return False
         if self._rest_since is None:

@@ -66,3 +66,12 @@ def test_auto_end_keys() -> None:
         load_case({**base, "time": {"end": 2, "max": 600}})
     with pytest.raises(CaseError, match="time.end: must be a number or auto, got 'soon'"):
         load_case({**base, "time": {"end": "soon"}})
+
+
+def test_energy_criterion() -> None:
+    # speed exp(-t): energy ∝ exp(-2t) < 1e-2 × peak (t = 0.1) from t = 0.1 + ln(10) = 2.40
+    schedule = Schedule(50.0, 1.0, 10.0, rest_speed=1e-6, rest_duration=0.5, rest_energy=1e-2)
+    runner = Runner(_Decaying(), schedule, [])
+    info = runner.run()
+    assert runner.at_rest
+    assert info.t == pytest.approx(2.5 + 0.5, abs=1e-9)

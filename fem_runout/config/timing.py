@@ -28,7 +28,8 @@ class TimeSpec(_Spec):
 
     With ``end: auto`` the run stops when the largest speed (over nodes deeper than
     ``output.front_threshold``) has stayed below ``rest_speed`` for ``rest_duration`` seconds,
-    or at ``max`` seconds.
+    or (with ``rest_energy``) the kinetic energy has stayed below ``rest_energy`` times its peak
+    for ``rest_duration`` seconds, or at ``max`` seconds.
     """
 
     end: Annotated[Real | Literal["auto"], BeforeValidator(_end)]
@@ -38,6 +39,7 @@ class TimeSpec(_Spec):
     max: Real | None = Field(None, gt=0)
     rest_speed: Real = Field(0.01, gt=0)
     rest_duration: Real = Field(5.0, ge=0)
+    rest_energy: Real | None = Field(None, gt=0, lt=1)
 
     @model_validator(mode="after")
     def _auto_needs_max(self) -> TimeSpec:
@@ -46,8 +48,9 @@ class TimeSpec(_Spec):
         if self.end != "auto":
             if not self.end > 0:
                 raise SpecError(f"must be > 0 or auto, got {self.end:g}", "end")
-            if self.max is not None:
-                raise SpecError("only used with end: auto", "max")
+            for key in ("max", "rest_energy"):
+                if getattr(self, key) is not None:
+                    raise SpecError("only used with end: auto", key)
         return self
 
     @property
