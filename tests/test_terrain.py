@@ -128,8 +128,10 @@ def test_missing_dem_and_data_folder(tmp_path: Path, monkeypatch: pytest.MonkeyP
     assert data_folder() == tmp_path
     data = dem_case(Path("${FEM_RUNOUT_DATA}/nowhere/dem.asc"),
                     release={"polygon": "${FEM_RUNOUT_DATA}/nowhere/rel.shp", "thickness": 1})
-    with pytest.raises(CaseError, match=f"file '{tmp_path}/nowhere/rel.shp' does not exist"):
+    with pytest.raises(CaseError, match=f"terrain.dem: file '{tmp_path}/nowhere/dem.asc' does "
+                                        "not exist; FEM_RUNOUT_DATA names the data folder") as err:
         load_case(data)
+    assert "github.com/avaframe/AvaFrame" in str(err.value)
     monkeypatch.delenv(DATA_ENV)
     assert data_folder() == (ROOT.parent / "shared" / "data").resolve()
 

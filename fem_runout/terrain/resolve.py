@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 
 from fem_runout.config import Case
+from fem_runout.config.geo import DATA_ENV, DATA_PLACEHOLDER, data_folder
 from fem_runout.errors import CaseError
 from fem_runout.terrain.dem import Raster, read_raster
 from fem_runout.terrain.nodes import elevation_at
@@ -125,6 +126,24 @@ def _check_nodata(case: Case) -> None:
     elevation_at(case, x.ravel(), y.ravel())
 
 
+def _check_files(case: Case) -> None:
+    """Refuse a missing input file; for ``${FEM_RUNOUT_DATA}`` paths say where data come from."""
+    paths = [("terrain.dem", case.terrain.dem)]
+    for i, item in enumerate(case.initial.release or ()):
+        paths += [(f"initial.release[{i}].polygon", item.polygon),
+                  (f"initial.release[{i}].raster", item.raster)]
+    for key, text in paths:
+        if text is None or case.resolve_input(text).is_file():
+            continue
+        hint = ""
+        if DATA_PLACEHOLDER in text:
+            hint = (f"; {DATA_ENV} names the data folder (now '{data_folder()}', default "
+                    "../shared/data from the project root); the avaKot files come from the "
+                    "AvaFrame repository, github.com/avaframe/AvaFrame, "
+                    "avaframe/data/avaKot/Inputs (see docs/real_terrain.md)")
+        raise CaseError(f"{key}: file '{case.resolve_input(text)}' does not exist{hint}")
+
+
 def resolve_terrain(case: Case) -> Case:
     """Fill and check the real-terrain parts of a case (idempotent; reads the input files).
 
@@ -132,6 +151,7 @@ def resolve_terrain(case: Case) -> Case:
         CaseError: Missing or unreadable files, nodata in the domain, CRS mismatch, a window
             outside the DEM.
     """
+    _check_files(case)
     releases = _release_crs(case)
     if case.terrain.dem is None:
         return case
