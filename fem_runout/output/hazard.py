@@ -221,6 +221,13 @@ class HazardMaps:
         if self.pictures:
             from fem_runout.output.maps import draw_maps
 
+            t = self.case.terrain
+            if t.dem is not None and t.fill_nodata:
+                from fem_runout.terrain.dem import read_raster, sample_raster
+
+                raw = read_raster(self.case.resolve_input(t.dem), "terrain.dem")
+                g["filled"] = np.isnan(sample_raster(raw, g["x"], g["y"]))
+
             self.written += draw_maps(g, extent, self.out_dir, self.case.name, self.threshold,
                                       info.t)
         return summary

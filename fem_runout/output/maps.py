@@ -28,7 +28,8 @@ def plot_hazard_map(g: dict[str, np.ndarray], extent: tuple[float, float, float,
     """Hillshade, peak flow depth, the release outline (red) and the deposit outline (black).
 
     Args:
-        g: Node grids (rows of increasing y): ``x, y, z, h0, peak_depth, h``.
+        g: Node grids (rows of increasing y): ``x, y, z, h0, peak_depth, h`` and optionally
+            ``filled`` (True where the DEM had nodata that was filled), drawn veiled.
         extent: ``(xmin, xmax, ymin, ymax)``.
         path: PNG to write.
         title: Figure title.
@@ -37,6 +38,7 @@ def plot_hazard_map(g: dict[str, np.ndarray], extent: tuple[float, float, float,
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     ny, nx = g["z"].shape[0] - 1, g["z"].shape[1] - 1
     dx, dy = (extent[1] - extent[0]) / nx, (extent[3] - extent[2]) / ny
@@ -50,6 +52,10 @@ def plot_hazard_map(g: dict[str, np.ndarray], extent: tuple[float, float, float,
     im = ax.imshow(peak, cmap="viridis", alpha=0.85, **kw)
     fig.colorbar(im, ax=ax, label="peak flow depth [m]", shrink=0.8)
     handles = []
+    if "filled" in g and g["filled"].any():
+        veil = np.ma.masked_where(~g["filled"], np.ones(g["filled"].shape))
+        ax.imshow(veil, cmap="gray", vmin=0, vmax=1, alpha=0.55, **kw)
+        handles.append(Patch(facecolor="white", edgecolor="grey", label="DEM nodata (filled)"))
     for key, colour, label in (("h0", "red", "release"), ("h", "black", "deposit")):
         if (g[key] > threshold).any():
             ax.contour(g["x"], g["y"], (g[key] > threshold).astype(float), levels=[0.5],
