@@ -9,7 +9,8 @@ For each rank count the case runs with ``python -m fem_runout`` (under ``mpiexec
 R > 1) into ``results/<name>_<method>_np<R>``. Each run's ``summary.json`` becomes a row of
 ``docs/real_terrain_results.json`` (rows of other methods are kept), the table between the
 ``<!-- results -->`` markers of the doc is regenerated from all rows, and the hazard map PNG of
-the run with the most ranks is copied to ``docs/figures/<name>_<method>.png``. With
+the run with the most ranks is copied to ``docs/figures/<name>_<method>.png`` (and its 3-D
+deposit view to ``<name>_<method>_3d.png``). With
 ``--collect`` nothing runs: the existing result folders are read.
 """
 
@@ -103,9 +104,11 @@ def main(args: argparse.Namespace) -> int:
         summary = json.loads((out / "summary.json").read_text())
         rows.append({key: summary[key] for key, _, _ in COLUMNS if key in summary})
     store.write_text(json.dumps(rows, indent=1) + "\n")
-    figure = args.doc.parent / "figures" / f"{name}_{args.method}.png"
-    figure.parent.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(_out_dir(name, args.method, max(args.ranks)) / "hazard_map.png", figure)
+    figures = args.doc.parent / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    source = _out_dir(name, args.method, max(args.ranks))
+    shutil.copyfile(source / "hazard_map.png", figures / f"{name}_{args.method}.png")
+    shutil.copyfile(source / "deposit_3d.png", figures / f"{name}_{args.method}_3d.png")
     _update_doc(args.doc, format_table(rows))
     print(format_table(rows))
     return 0

@@ -7,9 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fem_runout.output.pictures import render_depth
-
-__all__ = ["draw_maps", "hillshade", "plot_hazard_map"]
+__all__ = ["draw_maps", "hillshade", "plot_hazard_map", "render_deposit_3d"]
 
 
 def hillshade(z: np.ndarray, dx: float, dy: float, azimuth: float = 315.0,
@@ -73,16 +71,71 @@ def plot_hazard_map(g: dict[str, np.ndarray], extent: tuple[float, float, float,
     return path
 
 
+def _crop(g: dict[str, np.ndarray], threshold: float, margin: int = 10) -> dict[str, np.ndarray]:
+    """Return the grids around the nodes ever reached (plus ``margin`` nodes)."""
+    hit = (g["peak_depth"] > threshold) | (g["h0"] > threshold)
+    if not hit.any():
+        return g
+    rows, cols = np.flatnonzero(hit.any(axis=1)), np.flatnonzero(hit.any(axis=0))
+    r0, r1 = max(rows[0] - margin, 0), min(rows[-1] + margin + 1, hit.shape[0])
+    c0, c1 = max(cols[0] - margin, 0), min(cols[-1] + margin + 1, hit.shape[1])
+    return {k: v[r0:r1, c0:c1] for k, v in g.items() if v.shape == hit.shape}
+
+
+def render_deposit_3d(g: dict[str, np.ndarray], path: Path, threshold: float,
+                      title: str) -> Path | None:
+    """3-D view of the deposit on the terrain around the path, seen from beyond the deposit.
+
+    The camera looks back up the path: it stands on the side of the deposit opposite to the
+    release, 40° above the horizon.
+    """
+    import pyvista
+
+    c = _crop(g, threshold)
+    if min(c["z"].shape) < 2:
+        return None
+    grid = pyvista.StructuredGrid(c["x"].T, c["y"].T, c["z"].T)
+    depth = np.where(c["h"] > threshold, c["h"], np.nan)
+    grid.point_data["deposit depth [m]"] = depth.ravel()
+    wet = np.isfinite(depth)
+    src, dep = c["h0"] > threshold, wet if wet.any() else c["peak_depth"] > threshold
+    look = np.zeros(2)
+    if src.any() and dep.any():
+        look = np.array([c["x"][dep].mean() - c["x"][src].mean(),
+                         c["y"][dep].mean() - c["y"][src].mean()])
+    look = look / np.hypot(*look) if np.hypot(*look) > 0 else np.array([0.0, -1.0])
+    centre = np.array([c["x"].mean(), c["y"].mean(), float(np.nanmean(c["z"]))])
+    size = float(np.hypot(np.ptp(c["x"]), np.ptp(c["y"])))
+    elev = np.radians(40.0)
+    eye = centre + 1.3 * size * np.array([look[0] * np.cos(elev), look[1] * np.cos(elev),
+                                           np.sin(elev)])
+    plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 800))
+    try:
+        plotter.set_background("white")
+        clim = (threshold, float(np.nanmax(depth)) if wet.any() else 1.0)
+        plotter.add_mesh(grid, scalars="deposit depth [m]", cmap="viridis", clim=clim,
+                         nan_color="lightgrey", scalar_bar_args={
+                             "color": "black", "vertical": True, "position_x": 0.86,
+                             "position_y": 0.15})
+        plotter.add_title(title, font_size=12, color="black")
+        plotter.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
+        plotter.reset_camera()  # keep the direction, fit the crop in the view
+        plotter.camera.zoom(1.05)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        plotter.screenshot(str(path))
+    finally:
+        plotter.close()
+    return path
+
+
 def draw_maps(g: dict[str, np.ndarray], extent: tuple[float, float, float, float],
               out_dir: Path, name: str, threshold: float, t: float) -> list[Path]:
     """Draw ``hazard_map.png`` and ``deposit_3d.png`` (a failure is a warning, not an error)."""
-    ny, nx = g["z"].shape[0] - 1, g["z"].shape[1] - 1
     jobs = [
         ("hazard_map.png", lambda p: plot_hazard_map(
             g, extent, p, f"{name}: peak flow depth, release and deposit", threshold)),
-        ("deposit_3d.png", lambda p: render_depth(
-            g["x"].ravel(), g["y"].ravel(), g["z"].ravel(), g["h"].ravel(), nx, ny, p,
-            threshold, f"{name}: deposit at t = {t:.4g} s", "deposit depth [m]")),
+        ("deposit_3d.png", lambda p: render_deposit_3d(
+            g, p, threshold, f"{name}: deposit at t = {t:.4g} s")),
     ]
     written = []
     for file, job in jobs:
