@@ -15,14 +15,9 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
+from fem_runout.config.domain import BoundarySides, DomainSpec
 from fem_runout.config.expr import Expression, compile_expression
-from fem_runout.config.geo import (
-    ReleaseArea,
-    TerrainSpec,
-    expand_data_path,
-    parse_release,
-    parse_window,
-)
+from fem_runout.config.geo import ReleaseArea, TerrainSpec, expand_data_path, parse_release
 from fem_runout.config.timing import TimeSpec
 from fem_runout.config.types import Bool, Expr, Real, SpecError, is_number
 
@@ -42,102 +37,8 @@ __all__ = [
     "TimeSpec",
 ]
 
-SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
-BoundaryKind = Literal["open", "wall"]
-
-
 class _Spec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class BoundarySides(_Spec):
-    """Boundary kind of each side of the rectangle: ``open`` (outflow) or ``wall`` (slip)."""
-
-    left: BoundaryKind = "open"
-    right: BoundaryKind = "open"
-    bottom: BoundaryKind = "open"
-    top: BoundaryKind = "open"
-
-
-def _boundary(value: Any) -> Any:
-    """Turn ``open``/``wall`` into the same kind on every side."""
-    if isinstance(value, str):
-        if value not in ("open", "wall"):
-            raise SpecError(
-                f"{value!r} is not a known boundary; allowed: open, wall, "
-                "or a mapping of left/right/bottom/top to open/wall"
-            )
-        return dict.fromkeys(SIDES, value)
-    return value
-
-
-def _extent(value: Any) -> Any:
-    if value is None:
-        return value
-    ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(is_number, value))
-    if not ok or not all(math.isfinite(v) for v in value):
-        raise SpecError(f"must be four numbers [xmin, xmax, ymin, ymax], got {value!r}")
-    if not (value[0] < value[1] and value[2] < value[3]):
-        raise SpecError(f"must have xmin < xmax and ymin < ymax, got {list(value)!r}")
-    return tuple(float(v) for v in value)
-
-
-def _cells(value: Any) -> Any:
-    if value is None:
-        return value
-    ok = isinstance(value, list | tuple) and len(value) == 2
-    if not ok or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
-        raise SpecError(f"must be two positive integers, got {value!r}")
-    return tuple(value)
-
-
-class DomainSpec(_Spec):
-    """The rectangle, its structured mesh and its boundary conditions.
-
-    With ``terrain.dem`` the extent defaults to the DEM's (``window`` picks a part of it) and
-    the cell size to the DEM resolution; both are filled in when the case is loaded, with the
-    nodes on DEM cell centres.
-
-    Attributes:
-        extent: ``(xmin, xmax, ymin, ymax)`` [m].
-        window: Part of the DEM to simulate, ``(xmin, xmax, ymin, ymax)`` [m] (DEM only).
-        cells: Number of cells along x and y (or ``None`` when ``cell_size`` is given).
-        cell_size: Target cell size [m] (or ``None`` when ``cells`` is given).
-        boundary: Kind of each side.
-    """
-
-    extent: Annotated[tuple[float, float, float, float] | None, BeforeValidator(_extent)] = None
-    window: Annotated[tuple[float, float, float, float] | None, BeforeValidator(parse_window)] = (
-        None
-    )
-    cells: Annotated[tuple[int, int] | None, BeforeValidator(_cells)] = None
-    cell_size: Real | None = Field(None, gt=0)
-    boundary: Annotated[BoundarySides, BeforeValidator(_boundary)] = BoundarySides()
-
-    @model_validator(mode="after")
-    def _one_resolution(self) -> DomainSpec:
-        if self.cells is not None and self.cell_size is not None:
-            raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>")
-        if self.extent is not None and self.window is not None:
-            raise SpecError("give either extent or window, not both", "window")
-        return self
-
-    @property
-    def resolved_cells(self) -> tuple[int, int]:
-        """Number of cells ``(nx, ny)``, from ``cells`` or from ``cell_size`` (at least 1)."""
-        if self.cells is not None:
-            return self.cells
-        assert self.cell_size is not None and self.extent is not None, "case not resolved"
-        xmin, xmax, ymin, ymax = self.extent
-        return (
-            max(1, round((xmax - xmin) / self.cell_size)),
-            max(1, round((ymax - ymin) / self.cell_size)),
-        )
-
-    @property
-    def sides(self) -> dict[str, BoundaryKind]:
-        """Boundary kind by side name: ``left``, ``right``, ``bottom``, ``top``."""
-        return {side: getattr(self.boundary, side) for side in SIDES}
 
 
 def _velocity(value: Any) -> Any:
