@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import sys
 from dataclasses import dataclass, field
@@ -33,6 +34,9 @@ class RunResult:
         t: Final time.
         out_dir: Output folder (None when nothing was written).
         particles: Final number of particles (DAMPM; None for mesh-only methods).
+        at_rest: The run stopped because the flow came to rest (``time.end: auto``).
+        summary: Released, deposit and outflow volumes, peaks, affected area, run-out length
+            (see ``summary.json``; the same on every rank).
     """
 
     x: np.ndarray | None = None
@@ -49,6 +53,8 @@ class RunResult:
     t: float = 0.0
     out_dir: Path | None = None
     particles: int | None = None
+    at_rest: bool = False
+    summary: dict = field(default_factory=dict)
 
 
 class _Progress:
@@ -128,11 +134,16 @@ def run(
     from mpi4py import MPI
 
     from fem_runout.output import FieldWriter, PeakTracker, Pictures, SeriesRecorder, gather_nodal
+    from fem_runout.output.hazard import HazardMaps
     from fem_runout.runner import Runner, Schedule
 
     comm = comm or MPI.COMM_WORLD
     if not isinstance(case, Case):
         case = load_case(case)
+    elif case.terrain.dem is not None and case.domain.extent is None:
+        from fem_runout.terrain.resolve import resolve_terrain
+
+        case = resolve_terrain(case)  # a Case built without load_case
     solver = build_solver(case, comm)
     out = _prepare_out_dir(case, comm, overwrite) if write else None
     thr = case.output.front_threshold
@@ -151,16 +162,27 @@ def run(
             from mpm.output import ParticleWriter
 
             callbacks.append(ParticleWriter(out))
+    hazard = HazardMaps(case, out if case.output.hazard else None, case.output.pictures)
+    callbacks.append(hazard)
     t = case.time
-    schedule = Schedule(t.end, t.cfl, case.output.every, t.max_steps, t.dt_max)
-    progress = _Progress(t.end, case.name) if (not quiet and comm.rank == 0) else None
+    schedule = Schedule(t.end_time, t.cfl, case.output.every, t.max_steps, t.dt_max,
+                        t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy)
+    if not quiet:
+        _say_released(solver, comm)
+    progress = _Progress(t.end_time, case.name) if (not quiet and comm.rank == 0) else None
     runner = Runner(solver, schedule, callbacks, progress)
     info = runner.run()
     final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
     envelope = peaks.gathered()
     result = RunResult(series=recorder.series, wall_time=runner.wall_time, steps=info.step,
-                       t=info.t, out_dir=out,
+                       t=info.t, out_dir=out, at_rest=runner.at_rest,
                        particles=getattr(solver, "n_particles", None))
+    result.summary = {**hazard.summary, "t_end": info.t, "steps": info.step,
+                      "at_rest": runner.at_rest, "wall_time": runner.wall_time,
+                      "ranks": comm.size, "method": case.method,
+                      "particles": result.particles}
+    if out is not None and comm.rank == 0:
+        (out / "summary.json").write_text(json.dumps(result.summary, indent=2) + "\n")
     if final is not None:
         for key in ("x", "y", "h", "hu", "hv", "z"):
             setattr(result, key, final[key])
@@ -170,10 +192,22 @@ def run(
     return result
 
 
+def _say_released(solver, comm) -> None:
+    """Print the released volume ``Σ M_i h_i`` on rank 0 (collective)."""
+    from fem_runout.output import global_sum
+
+    n = solver.V.dofmap.index_map.size_local
+    volume = global_sum(comm, solver.lumped_mass[:n] @ solver.fields["h"].x.array[:n])
+    if comm.rank == 0:
+        print(f"released volume: {volume:.6g} m³", flush=True)
+
+
 def _summary(result: RunResult, ranks: int) -> None:
     err = result.series.get("mass_error", np.array([np.nan]))
+    rest = " (flow at rest)" if result.at_rest else ""
     print(
-        f"done: {result.steps} steps to t = {result.t:.4g} s in {result.wall_time:.2f} s wall "
+        f"done: {result.steps} steps to t = {result.t:.4g} s{rest} in "
+        f"{result.wall_time:.2f} s wall "
         f"on {ranks} rank(s); relative mass error {float(err[-1]):.2e}"
         + (f"; results in {result.out_dir}/" if result.out_dir else ""),
         flush=True,

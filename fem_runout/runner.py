@@ -11,6 +11,8 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from fem_runout.callbacks import Callback, StepInfo
 from fem_runout.errors import SimulationError
 from fem_runout.solver_api import Solver
@@ -26,6 +28,11 @@ class Schedule:
         every: Output interval [s].
         max_steps: Stop after this many steps (None: no limit).
         dt_max: Upper bound of the step [s] (None: no bound).
+        rest_speed: Stop once the largest speed stays below this [m/s] (None: run to end).
+        rest_duration: ... for this long [s].
+        rest_depth: Only nodes deeper than this [m] count for the largest speed.
+        rest_energy: Also at rest when the kinetic energy is below this fraction of its peak
+            (None: speed criterion only).
     """
 
     end: float
@@ -33,6 +40,35 @@ class Schedule:
     every: float
     max_steps: int | None = None
     dt_max: float | None = None
+    rest_speed: float | None = None
+    rest_duration: float = 0.0
+    rest_depth: float = 1e-3
+    rest_energy: float | None = None
+
+
+def max_speed(solver: Solver, depth: float) -> float:
+    """Largest nodal speed ``|(hu, hv)| / h`` over nodes with ``h > depth`` (collective)."""
+    return motion(solver, depth)[0]
+
+
+def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, float]:
+    """Largest speed and (if ``energy``) ``Σ M |q|² / h`` over nodes deeper than ``depth``.
+
+    The second value is twice the kinetic energy divided by the density (0 if not asked).
+    Collective: one max reduction, plus one sum reduction with ``energy``.
+    """
+    from mpi4py import MPI
+
+    n = solver.V.dofmap.index_map.size_local
+    h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
+    wet = h > depth
+    q2 = hu[wet] ** 2 + hv[wet] ** 2
+    speed = float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0
+    speed = float(solver.comm.allreduce(speed, op=MPI.MAX))
+    if not energy:
+        return speed, 0.0
+    local = float(np.sum(np.asarray(solver.lumped_mass[:n])[wet] * q2 / h[wet]))
+    return speed, float(solver.comm.allreduce(local, op=MPI.SUM))
 
 
 class Runner:
@@ -54,13 +90,20 @@ class Runner:
         self.callbacks = list(callbacks)
         self.progress = progress
         self.wall_time = 0.0
+        self.at_rest = False
+        self._rest_since: float | None = None
+        self._peak_energy = 0.0
 
     def _call(self, hook: str, info: StepInfo) -> None:
         for cb in self.callbacks:
             getattr(cb, hook)(self.solver, info)
 
     def run(self) -> StepInfo:
-        """Run to the end time (collective); raise SimulationError on a bad state."""
+        """Run to the end time or to rest (collective); raise SimulationError on a bad state.
+
+        With ``schedule.rest_speed`` set, the run stops after the step at which the largest
+        speed has stayed below it for ``rest_duration`` seconds (:attr:`at_rest` is then True).
+        """
         s, solver = self.schedule, self.solver
         start = time.perf_counter()
         info = StepInfo(0.0, 0.0, 0)
@@ -89,6 +132,8 @@ class Runner:
                 n_out = math.floor(info.t / s.every + 1e-9) + 1
             if self.progress is not None:
                 self.progress.update(info)
+            if self._came_to_rest(info):
+                break
         self.wall_time = time.perf_counter() - start
         if last_output != info.t:
             self._call("output", info)
@@ -96,6 +141,26 @@ class Runner:
         if self.progress is not None:
             self.progress.close()
         return info
+
+    def _came_to_rest(self, info: StepInfo) -> bool:
+        """Whether the flow has been at rest for ``rest_duration`` (collective, no I/O).
+
+        At rest: the largest speed is below ``rest_speed``, or (with ``rest_energy``) the
+        kinetic energy is below ``rest_energy`` times its peak so far.
+        """
+        s = self.schedule
+        if s.rest_speed is None:
+            return False
+        speed, energy = motion(self.solver, s.rest_depth, s.rest_energy is not None)
+        self._peak_energy = max(self._peak_energy, energy)
+        slow = s.rest_energy is not None and energy < s.rest_energy * self._peak_energy
+        if speed >= s.rest_speed and not slow:
+            self._rest_since = None
+            return False
+        if self._rest_since is None:
+            self._rest_since = info.t
+        self.at_rest = info.t - self._rest_since >= s.rest_duration - 1e-12
+        return self.at_rest
 
     def _next_dt(self, t: float, next_output: float) -> float:
         s = self.schedule

@@ -282,7 +282,8 @@ def load_case(
 
     Returns:
         The validated case; ``case.source_dir`` is the case file folder (``None`` for a
-        mapping).
+        mapping). With ``terrain.dem`` the domain extent, cell size and CRS are filled from
+        the DEM (see :func:`fem_runout.terrain.resolve.resolve_terrain`).
 
     Raises:
         CaseError: For a missing or unreadable file, invalid YAML, a bad override, an unknown
@@ -301,7 +302,16 @@ def load_case(
         case = Case.model_validate(raw)
     except ValidationError as exc:
         raise CaseError(_message(exc, label, items)) from None
-    return case.with_source_dir(source_dir) if source_dir is not None else case
+    if source_dir is not None:
+        case = case.with_source_dir(source_dir)
+    if case.terrain.dem is not None or case.initial.release is not None:
+        from fem_runout.terrain.resolve import resolve_terrain
+
+        try:
+            case = resolve_terrain(case)
+        except CaseError as exc:
+            raise CaseError(f"{label}: {exc}") from None
+    return case
 
 
 def dump_resolved(case: Case) -> str:

@@ -15,7 +15,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
 
+from fem_runout.config.domain import BoundarySides, DomainSpec
 from fem_runout.config.expr import Expression, compile_expression
+from fem_runout.config.geo import ReleaseArea, TerrainSpec, expand_data_path, parse_release
+from fem_runout.config.timing import TimeSpec
 from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, is_number
 
 __all__ = [
@@ -27,106 +30,15 @@ __all__ = [
     "MaterialSpec",
     "NumericsSpec",
     "OutputSpec",
+    "ReleaseArea",
     "RheologySpec",
     "SpecError",
     "TerrainSpec",
     "TimeSpec",
 ]
 
-SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
-BoundaryKind = Literal["open", "wall"]
-
-
 class _Spec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class BoundarySides(_Spec):
-    """Boundary kind of each side of the rectangle: ``open`` (outflow) or ``wall`` (slip)."""
-
-    left: BoundaryKind = "open"
-    right: BoundaryKind = "open"
-    bottom: BoundaryKind = "open"
-    top: BoundaryKind = "open"
-
-
-def _boundary(value: Any) -> Any:
-    """Turn ``open``/``wall`` into the same kind on every side."""
-    if isinstance(value, str):
-        if value not in ("open", "wall"):
-            raise SpecError(
-                f"{value!r} is not a known boundary; allowed: open, wall, "
-                "or a mapping of left/right/bottom/top to open/wall"
-            )
-        return dict.fromkeys(SIDES, value)
-    return value
-
-
-def _extent(value: Any) -> Any:
-    ok = isinstance(value, list | tuple) and len(value) == 4 and all(map(is_number, value))
-    if not ok or not all(math.isfinite(v) for v in value):
-        raise SpecError(f"must be four numbers [xmin, xmax, ymin, ymax], got {value!r}")
-    if not (value[0] < value[1] and value[2] < value[3]):
-        raise SpecError(f"must have xmin < xmax and ymin < ymax, got {list(value)!r}")
-    return tuple(float(v) for v in value)
-
-
-def _cells(value: Any) -> Any:
-    if value is None:
-        return value
-    ok = isinstance(value, list | tuple) and len(value) == 2
-    if not ok or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
-        raise SpecError(f"must be two positive integers, got {value!r}")
-    return tuple(value)
-
-
-class DomainSpec(_Spec):
-    """The rectangle, its structured mesh and its boundary conditions.
-
-    Attributes:
-        extent: ``(xmin, xmax, ymin, ymax)`` [m].
-        cells: Number of cells along x and y (or ``None`` when ``cell_size`` is given).
-        cell_size: Target cell size [m] (or ``None`` when ``cells`` is given).
-        boundary: Kind of each side.
-    """
-
-    extent: Annotated[tuple[float, float, float, float], BeforeValidator(_extent)]
-    cells: Annotated[tuple[int, int] | None, BeforeValidator(_cells)] = None
-    cell_size: Real | None = Field(None, gt=0)
-    boundary: Annotated[BoundarySides, BeforeValidator(_boundary)] = BoundarySides()
-
-    @model_validator(mode="after")
-    def _one_resolution(self) -> DomainSpec:
-        if (self.cells is None) == (self.cell_size is None):
-            raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>")
-        return self
-
-    @property
-    def resolved_cells(self) -> tuple[int, int]:
-        """Number of cells ``(nx, ny)``, from ``cells`` or from ``cell_size`` (at least 1)."""
-        if self.cells is not None:
-            return self.cells
-        assert self.cell_size is not None
-        xmin, xmax, ymin, ymax = self.extent
-        return (
-            max(1, round((xmax - xmin) / self.cell_size)),
-            max(1, round((ymax - ymin) / self.cell_size)),
-        )
-
-    @property
-    def sides(self) -> dict[str, BoundaryKind]:
-        """Boundary kind by side name: ``left``, ``right``, ``bottom``, ``top``."""
-        return {side: getattr(self.boundary, side) for side in SIDES}
-
-
-class TerrainSpec(_Spec):
-    """Terrain elevation ``z(x, y)`` [m]."""
-
-    elevation: Expr = "0"
-
-    def elevation_fn(self) -> Expression:
-        """Return the compiled elevation expression."""
-        return compile_expression(self.elevation, "terrain.elevation")
 
 
 def _velocity(value: Any) -> Any:
@@ -136,16 +48,18 @@ def _velocity(value: Any) -> Any:
 
 
 class InitialSpec(_Spec):
-    """Initial state: flow depth ``h`` [m] or free surface ``h + z`` [m], and velocity [m/s]."""
+    """Initial state: depth ``h``, free surface ``h + z`` or release areas [m]; velocity [m/s]."""
 
     depth: Expr | None = None
     free_surface: Expr | None = None
+    release: Annotated[tuple[ReleaseArea, ...] | None, BeforeValidator(parse_release)] = None
     velocity: Annotated[tuple[Expr, Expr], BeforeValidator(_velocity)] = ("0", "0")
 
     @model_validator(mode="after")
     def _one_state(self) -> InitialSpec:
-        if (self.depth is None) == (self.free_surface is None):
-            raise SpecError("give exactly one of depth or free_surface")
+        given = [self.depth, self.free_surface, self.release]
+        if sum(v is not None for v in given) != 1:
+            raise SpecError("give exactly one of depth, free_surface or release")
         return self
 
     def depth_fn(self) -> Expression | None:
@@ -249,15 +163,6 @@ class MaterialSpec(_Spec):
     rheology: RheologySpec = RheologySpec()
 
 
-class TimeSpec(_Spec):
-    """End time [s], CFL number and optional step limits."""
-
-    end: Real = Field(gt=0)
-    cfl: Real = Field(0.9, gt=0, le=1)
-    max_steps: Int | None = Field(None, gt=0)
-    dt_max: Real | None = Field(None, gt=0)
-
-
 class OutputSpec(_Spec):
     """Where and how often to write results.
 
@@ -269,6 +174,8 @@ class OutputSpec(_Spec):
     front_threshold: Real = Field(1e-3, gt=0)
     pictures: Bool = True
     vtk: Bool = False  # also write fields.pvd (VTK XML, readable by pyvista/VTK without ADIOS2)
+    hazard: Bool = True  # hazard maps (GeoTIFF) and summary.json
+    ascii: Bool = False  # hazard maps also as ESRI ASCII grids
 
 
 class NumericsSpec(_Spec):
@@ -305,6 +212,8 @@ def _fill_output(data: dict[str, Any]) -> dict[str, Any]:
         output["dir"] = f"results/{name}"
     time = data.get("time")
     end = time.get("end") if isinstance(time, dict) else None
+    if end == "auto":
+        end = time.get("max")
     if output.get("every") is None and is_number(end) and math.isfinite(end) and end > 0:
         output["every"] = end / 10
     return {**data, "output": output}
@@ -345,6 +254,18 @@ class Case(_Spec):
     def _defaults_from_other_keys(cls, data: Any) -> Any:
         return _fill_output(data) if isinstance(data, dict) else data
 
+    @model_validator(mode="after")
+    def _domain_needs_dem(self) -> Case:
+        d = self.domain
+        if self.terrain.dem is None:
+            if d.extent is None:
+                raise SpecError("required key is missing (or give terrain.dem)", "domain.extent")
+            if d.window is not None:
+                raise SpecError("only used with terrain.dem", "domain.window")
+            if d.cells is None and d.cell_size is None:
+                raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>", "domain")
+        return self
+
     def __eq__(self, other: object) -> bool:
         """Equal when all fields are equal (``source_dir`` is ignored)."""
         if not isinstance(other, Case):
@@ -369,8 +290,9 @@ class Case(_Spec):
         """Resolve an input file path; relative paths are relative to the case file folder.
 
         Without a case file, relative paths are relative to the current working directory.
+        ``${FEM_RUNOUT_DATA}`` expands to the data folder (``geo.data_folder``).
         """
-        p = Path(path).expanduser()
+        p = Path(expand_data_path(str(path))).expanduser()
         if p.is_absolute():
             return p
         return (self._source_dir or Path.cwd()) / p
@@ -381,7 +303,12 @@ class Case(_Spec):
         return Path(self.output.dir or f"results/{self.name}")
 
     def initial_depth(self, x: Any, y: Any) -> np.ndarray:
-        """Return the initial depth: ``depth``, or ``max(free_surface - elevation, 0)``."""
+        """Return the initial depth: ``depth``, ``max(free_surface - elevation, 0)`` or release."""
+        if self.initial.release is not None:
+            from fem_runout.terrain.nodes import release_depth
+
+            xa, ya = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+            return release_depth(self, xa.ravel(), ya.ravel()).reshape(xa.shape)
         depth = self.initial.depth_fn()
         if depth is not None:
             return depth(x, y)

@@ -1,4 +1,4 @@
-"""Outputs of a run: fields for ParaView, diagnostics time series, peak envelopes, pictures.
+"""Outputs of a run: fields, time series, peak envelopes, pictures, hazard maps (GeoTIFF).
 
 Every output is a :class:`fem_runout.callbacks.Callback`; nodal data is gathered to rank 0
 in one rank-count independent order by :func:`gather_nodal`.
@@ -19,12 +19,15 @@ from fem_runout.output.gather import (
     global_sum,
     sorted_node_order,
 )
+from fem_runout.output.hazard import MAP_NAMES, HazardMaps
 from fem_runout.output.pictures import Pictures, grid_shape, plot_series, render_depth
 
 __all__ = [
     "FIELD_NAMES",
     "SERIES_COLUMNS",
     "FieldWriter",
+    "HazardMaps",
+    "MAP_NAMES",
     "PeakTracker",
     "Pictures",
     "SeriesRecorder",

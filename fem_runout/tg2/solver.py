@@ -130,11 +130,21 @@ class TG2Solver:
 
 
 def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:
-    """Terrain, depth and momenta at the nodes from the case's expressions."""
+    """Terrain, depth and momenta at the nodes from the case (every method starts here).
+
+    The elevation comes from ``terrain.dem`` (bilinear on DEM cell centres) or the
+    expression; the depth from ``initial.release`` (polygons, raster), ``initial.depth`` or
+    ``initial.free_surface``.
+    """
+    from fem_runout.terrain import elevation_at, initial_depth_at
+
     x, y = coords[:, 0], coords[:, 1]
-    z = case.terrain.elevation_fn()(x, y)
+    z = elevation_at(case, x, y)
     depth_fn, surface_fn = case.initial.depth_fn(), case.initial.free_surface_fn()
-    if depth_fn is not None:
+    released = initial_depth_at(case, x, y)
+    if released is not None:
+        h = released
+    elif depth_fn is not None:
         h = np.asarray(depth_fn(x, y), dtype=float)
         scale = max(float(np.abs(h).max()) if h.size else 0.0, 1.0)
         h[(h < 0) & (h > -1e-12 * scale)] = 0.0  # round-off of the node coordinates

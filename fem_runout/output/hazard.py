@@ -1,0 +1,233 @@
+"""Hazard maps of a run: peak depth, speed and pressure, deposit and arrival time as rasters.
+
+A callback on the Q1 fields ``h, hu, hv`` (every method has them). At finish the nodal maps
+are gathered to rank 0 and written as GeoTIFF (and ESRI ASCII with ``output.ascii``). With
+``terrain.dem`` they lie on the DEM grid (same shape, transform and CRS; cells outside the
+domain are nodata); nodes on DEM cell centres give their values unchanged, other cells are
+interpolated bilinearly (nearest for the arrival time). Without a DEM the rasters are the node
+grid itself (one pixel per node, no CRS).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from fem_runout.output.diagnostics import nodal_speed
+from fem_runout.output.gather import gather_nodal, global_sum
+from fem_runout.terrain.dem import sample_grid
+
+if TYPE_CHECKING:
+    from fem_runout.callbacks import StepInfo
+    from fem_runout.config import Case
+    from fem_runout.solver_api import Solver
+
+__all__ = ["MAP_NAMES", "NODATA", "GridTarget", "HazardMaps", "map_summary", "write_rasters"]
+
+NODATA = -9999.0
+MAP_NAMES = ("peak_depth", "peak_speed", "peak_pressure", "deposit_depth", "arrival_time")
+
+
+@dataclass(frozen=True)
+class GridTarget:
+    """Where rasters go: shape, transform and CRS, and the map coordinates of the pixels."""
+
+    shape: tuple[int, int]
+    transform: Any
+    crs: Any
+
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel-centre x (per column) and y (per row)."""
+        t = self.transform
+        rows, cols = self.shape
+        return t.c + t.a * (np.arange(cols) + 0.5), t.f + t.e * (np.arange(rows) + 0.5)
+
+
+def target_for(case: Case) -> GridTarget:
+    """Return the DEM grid of the case, else the node grid (one pixel centred on each node)."""
+    from rasterio.transform import from_origin
+
+    if case.terrain.dem is not None:
+        from fem_runout.terrain.dem import read_raster
+
+        t = case.terrain
+        dem = read_raster(case.resolve_input(t.dem), "terrain.dem", t.fill_nodata)
+        return GridTarget(dem.shape, dem.transform, t.crs or dem.crs)
+    xmin, xmax, ymin, ymax = case.domain.extent or (0.0, 1.0, 0.0, 1.0)
+    nx, ny = case.domain.resolved_cells
+    dx, dy = (xmax - xmin) / nx, (ymax - ymin) / ny
+    return GridTarget((ny + 1, nx + 1), from_origin(xmin - dx / 2, ymax + dy / 2, dx, dy), None)
+
+
+def to_target(grid: np.ndarray, extent: tuple[float, float, float, float],
+              target: GridTarget, method: str = "bilinear") -> np.ndarray:
+    """Resample a node grid (rows of increasing y) to the target pixels (NODATA outside)."""
+    xmin, xmax, ymin, ymax = extent
+    ny, nx = grid.shape[0] - 1, grid.shape[1] - 1
+    dx, dy = (xmax - xmin) / nx, (ymax - ymin) / ny
+    xc, yc = target.centres()
+    tol = 1e-6 * max(dx, dy)
+    cols = np.flatnonzero((xc >= xmin - tol) & (xc <= xmax + tol))
+    rows = np.flatnonzero((yc >= ymin - tol) & (yc <= ymax + tol))
+    out = np.full(target.shape, NODATA)
+    X, Y = np.meshgrid(xc[cols], yc[rows])
+    values = sample_grid(grid, xmin, dx, ymin, dy, X, Y, method)
+    out[np.ix_(rows, cols)] = np.where(np.isfinite(values), values, NODATA)
+    return out
+
+
+def write_rasters(maps: dict[str, np.ndarray], target: GridTarget, out_dir: Path,
+                  ascii_grids: bool = False) -> list[Path]:
+    """Write each map as ``<name>.tif`` (and ``<name>.asc``) with the target's georeference."""
+    import rasterio
+
+    written = []
+    profile = {"count": 1, "dtype": "float64", "height": target.shape[0],
+               "width": target.shape[1], "transform": target.transform, "crs": target.crs,
+               "nodata": NODATA}
+    for name, values in maps.items():
+        for suffix, driver in ((".tif", "GTiff"), (".asc", "AAIGrid")):
+            if suffix == ".asc" and not ascii_grids:
+                continue
+            path = out_dir / f"{name}{suffix}"
+            extra = {"compress": "deflate"} if driver == "GTiff" else {}
+            with rasterio.open(path, "w", driver=driver, **profile, **extra) as dst:
+                dst.write(values.astype(np.float64), 1)
+            written.append(path)
+    return written
+
+
+def _node_areas(shape: tuple[int, int], extent: tuple[float, float, float, float]) -> np.ndarray:
+    """Dual-cell area of every node of a grid (halved on edges)."""
+    ny, nx = shape[0] - 1, shape[1] - 1
+    xmin, xmax, ymin, ymax = extent
+    wx = np.full(nx + 1, (xmax - xmin) / nx)
+    wy = np.full(ny + 1, (ymax - ymin) / ny)
+    wx[[0, -1]] *= 0.5
+    wy[[0, -1]] *= 0.5
+    return np.outer(wy, wx)
+
+
+def map_summary(g: dict[str, np.ndarray], extent: tuple[float, float, float, float],
+                threshold: float) -> dict[str, float]:
+    """Run-out length, travel angle, affected area and peaks from node grids.
+
+    The run-out length is the largest horizontal distance from the highest released node to a
+    node whose peak depth exceeded ``threshold``; the travel angle is ``atan(H / L)`` with
+    ``H`` the drop between those two nodes.
+    """
+    area = _node_areas(g["z"].shape, extent)
+    hit = g["peak_depth"] > threshold
+    src = g["h0"] > threshold
+    out = {"affected_area": float(area[hit].sum()), "peak_depth_max": float(g["peak_depth"].max()),
+           "peak_speed_max": float(g["peak_speed"].max()),
+           "peak_pressure_max": float(g["peak_pressure"].max()),
+           "deposit_area": float(area[g["h"] > threshold].sum()),
+           "runout_length": 0.0, "travel_angle_deg": float("nan")}
+    if src.any() and hit.any():
+        z = np.where(src, g["z"], -np.inf)
+        top = np.unravel_index(int(np.argmax(z)), z.shape)
+        dist = np.hypot(g["x"] - g["x"][top], g["y"] - g["y"][top])
+        far = np.unravel_index(int(np.argmax(np.where(hit, dist, -1.0))), dist.shape)
+        out["runout_length"] = float(dist[far])
+        drop = float(g["z"][top] - g["z"][far])
+        out["travel_angle_deg"] = float(np.degrees(np.arctan2(drop, dist[far])))
+    return out
+
+
+class HazardMaps:
+    """Callback tracking per-node hazard quantities; writes rasters, maps and a summary.
+
+    Tracked on the owned nodes after every step (no communication): peak depth, peak speed
+    (nodes deeper than ``threshold``), peak pressure ``ρ v²``, first arrival time (depth above
+    ``threshold``; 0 in the release) and the final depth (the deposit).
+
+    Attributes:
+        summary: After finish (every rank): volumes, peaks, affected area, run-out length.
+        written: Files written (rank 0).
+    """
+
+    def __init__(self, case: Case, out_dir: str | Path | None, pictures: bool = True) -> None:
+        """Configure the maps from the case (threshold, density, DEM grid, ``output.ascii``)."""
+        self.case = case
+        self.out_dir = None if out_dir is None else Path(out_dir)
+        self.pictures = pictures
+        self.threshold = float(case.output.front_threshold)
+        self.density = float(case.material.density)
+        self.summary: dict[str, Any] = {}
+        self.written: list[Path] = []
+        self._track: dict[str, np.ndarray] = {}
+
+    def _owned(self, solver: Solver) -> tuple[np.ndarray, ...]:
+        n = solver.V.dofmap.index_map.size_local
+        return tuple(solver.fields[k].x.array[:n].real.copy() for k in ("h", "hu", "hv", "z"))
+
+    def start(self, solver: Solver, info: StepInfo) -> None:
+        """Store the released state; print nothing (the API prints the released volume)."""
+        h, _, _, z = self._owned(solver)
+        n = h.size
+        self._track = {"h0": h, "z": z, "peak_depth": h.copy(), "peak_speed": np.zeros(n),
+                       "peak_pressure": np.zeros(n),
+                       "arrival_time": np.where(h > self.threshold, info.t, np.nan)}
+        self.summary["released_volume"] = global_sum(solver.comm, solver.lumped_mass[:n] @ h)
+        self.step(solver, info)
+
+    def step(self, solver: Solver, info: StepInfo) -> None:
+        """Fold the current state into the envelopes."""
+        h, hu, hv, _ = self._owned(solver)
+        tr = self._track
+        speed = nodal_speed(h, hu, hv, self.threshold)
+        np.maximum(tr["peak_depth"], h, out=tr["peak_depth"])
+        np.maximum(tr["peak_speed"], speed, out=tr["peak_speed"])
+        np.maximum(tr["peak_pressure"], self.density * speed**2, out=tr["peak_pressure"])
+        tr["arrival_time"][np.isnan(tr["arrival_time"]) & (h > self.threshold)] = info.t
+
+    def output(self, solver: Solver, info: StepInfo) -> None:
+        """Nothing to do at output times."""
+
+    def finish(self, solver: Solver, info: StepInfo) -> None:
+        """Gather (collective), then write the rasters, pictures and summary on rank 0."""
+        h = self._owned(solver)[0]
+        n = h.size
+        deposit = global_sum(solver.comm, solver.lumped_mass[:n] @ h)
+        outflow = float(solver.outflow_volume)
+        released = self.summary["released_volume"]
+        self.summary.update(deposit_volume=deposit, outflow_volume=outflow,
+                            mass_balance_error=(deposit + outflow - released) / released
+                            if released else deposit + outflow)
+        nodes = gather_nodal(solver.V, {**self._track, "h": h})
+        extra = None
+        if nodes is not None:
+            extra = self._write(nodes, info)
+        self.summary.update(solver.comm.bcast(extra, root=0))
+
+    def _write(self, nodes: dict[str, np.ndarray], info: StepInfo) -> dict[str, float]:
+        """Rank 0: grids, summary, rasters and pictures."""
+        nx, ny = self.case.domain.resolved_cells
+        extent = self.case.domain.extent or (0.0, 1.0, 0.0, 1.0)
+        g = {k: np.reshape(v, (ny + 1, nx + 1)) for k, v in nodes.items()}
+        summary = map_summary(g, extent, self.threshold)
+        if self.out_dir is None:
+            return summary
+        target = target_for(self.case)
+        g["deposit_depth"] = g["h"]
+        maps = {name: to_target(g[name], extent, target,
+                                "nearest" if name == "arrival_time" else "bilinear")
+                for name in MAP_NAMES}
+        self.written += write_rasters(maps, target, self.out_dir, self.case.output.ascii)
+        if self.pictures:
+            from fem_runout.output.maps import draw_maps
+
+            t = self.case.terrain
+            if t.dem is not None and t.fill_nodata:
+                from fem_runout.terrain.dem import read_raster, sample_raster
+
+                raw = read_raster(self.case.resolve_input(t.dem), "terrain.dem")
+                g["filled"] = np.isnan(sample_raster(raw, g["x"], g["y"]))
+
+            self.written += draw_maps(g, extent, self.out_dir, self.case.name, self.threshold,
+                                      info.t)
+        return summary

@@ -1,0 +1,85 @@
+"""Hazard rasters on the DEM grid, the run summary and the volume balance with outflow."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import shapely
+
+from fem_runout.api import run
+from fem_runout.config import load_case
+from fem_runout.output.hazard import MAP_NAMES, NODATA
+from tests.terrain_helpers import dem_case, plane, write_dem, write_polygons
+
+
+@pytest.fixture(scope="module")
+def steep_run(tmp_path_factory):
+    """A release sliding off a steep synthetic DEM through the open right side (1 rank)."""
+    tmp = tmp_path_factory.mktemp("steep")
+    dem = write_dem(tmp / "dem.tif", plane(slope=0.6))
+    write_polygons(tmp / "rel.geojson", [shapely.box(1010, 1950, 1030, 1975)])
+    case = load_case(dem_case(
+        dem, output={"dir": str(tmp / "out"), "ascii": True, "pictures": True},
+        material={"friction": {"law": "voellmy", "mu": 0.1, "xi": 1000}},
+        time={"end": "auto", "max": 12.0}))
+    return case, run(case, overwrite=True), dem
+
+
+def test_rasters_match_the_dem_grid(steep_run) -> None:
+    _, result, dem = steep_run
+    with rasterio.open(dem) as src:
+        shape, transform, crs = src.shape, src.transform, src.crs
+    for name in MAP_NAMES:
+        for suffix in (".tif", ".asc"):
+            with rasterio.open(result.out_dir / f"{name}{suffix}") as out:
+                assert out.shape == shape and out.transform.almost_equals(transform)
+                if suffix == ".tif":
+                    assert out.crs == crs and out.nodata == NODATA
+    with rasterio.open(result.out_dir / "deposit_depth.tif") as out:
+        deposit = out.read(1)
+    np.testing.assert_array_equal(deposit, result.h.reshape(16, 20)[::-1])
+    with rasterio.open(result.out_dir / "arrival_time.tif") as out:
+        arrival = out.read(1)[::-1].ravel()
+    h0_nodes = arrival == 0.0
+    assert h0_nodes.sum() > 0 and np.all(arrival[~h0_nodes & (arrival != NODATA)] > 0)
+    for png in ("hazard_map.png", "deposit_3d.png"):
+        assert (result.out_dir / png).stat().st_size > 10_000
+
+
+def test_volume_balance_with_outflow(steep_run) -> None:
+    _, result, _ = steep_run
+    s = result.summary
+    assert s["released_volume"] == pytest.approx(20 * 25 * 1.0, rel=1e-12)
+    assert s["outflow_volume"] > 0.1 * s["released_volume"]  # a good part left the domain
+    balance = s["deposit_volume"] + s["outflow_volume"] - s["released_volume"]
+    assert abs(balance) <= 1e-10 * s["released_volume"]
+    saved = json.loads((result.out_dir / "summary.json").read_text())
+    assert saved["deposit_volume"] == s["deposit_volume"] and saved["ranks"] == 1
+    assert s["runout_length"] > 40 and 0 < s["travel_angle_deg"] < 35
+    assert s["peak_pressure_max"] == pytest.approx(200 * s["peak_speed_max"] ** 2, rel=1e-12)
+
+
+def test_coarser_mesh_and_no_dem(tmp_path: Path) -> None:
+    dem = write_dem(tmp_path / "dem.tif", plane())
+    write_polygons(tmp_path / "rel.geojson", [shapely.box(1010, 1950, 1030, 1975)])
+    case = load_case(dem_case(dem, domain={"cell_size": 10.0},
+                              output={"dir": str(tmp_path / "coarse")}, time={"max": 1.0}))
+    result = run(case)
+    with rasterio.open(result.out_dir / "peak_depth.tif") as out:
+        peak = out.read(1)
+        assert out.shape == (16, 20)
+    nodes = result.peak_depth.reshape(8, 10)[::-1]
+    np.testing.assert_allclose(peak[1::2, 0:19:2], nodes, rtol=1e-12)  # on the nodes
+    assert (peak[:, 19] == NODATA).all()  # the last column lies outside the domain
+    flat = {"name": "flat", "domain": {"extent": [0, 4, 0, 2], "cells": [4, 2]},
+            "initial": {"depth": "where(x < 2, 1, 0)"}, "time": {"end": 0.2},
+            "output": {"dir": str(tmp_path / "flat"), "pictures": False}}
+    result = run(load_case(flat))
+    with rasterio.open(result.out_dir / "peak_depth.tif") as out:
+        assert out.shape == (3, 5) and out.crs is None and out.transform.a == 1.0
+        assert out.bounds == (-0.5, -0.5, 4.5, 2.5)
+        np.testing.assert_array_equal(out.read(1), result.peak_depth.reshape(3, 5)[::-1])
