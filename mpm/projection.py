@@ -12,7 +12,9 @@ They are blended per cell as in flux-corrected transport: ``h = h^L + M_L^{-1} �
 with the element antidiffusion ``f_K = (M_L^K - M_C^K) h^H`` (``Σ_i f_{K,i} = 0``, so any
 ``α_K`` conserves ``Σ_i M_i h_i = Σ_p V_p`` exactly) and ``α_K = 1`` except in the cells
 touching a node that would get a negative depth, where ``α_K = 0`` (repeated until no node is
-negative). ``hu, hv`` use the same ``α_K``.
+negative). Further columns (if any) use the same ``α_K``. The solver projects ``h`` this way
+and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ m_p v_p N_i / M_i``
+(bounded by the particle velocities, so the output speed never exceeds the particles').
 
 On the structured grid the consistent mass matrix is a tensor product, ``M_C = M_y ⊗ M_x``
 with the 1D matrices ``Δ/6 tridiag(1, 4, 1)`` (2 at the ends), so ``M_C^{-1} b`` is two sweeps
@@ -135,11 +137,11 @@ class GridProjector:
         """Blend of the lumped and consistent projections of ``b`` (see the module docstring).
 
         Args:
-            b: (n_local, 3) nodal sums ``Σ_p V_p N_i``, ``Σ_p V_p u_p N_i``,
-                ``Σ_p V_p v_p N_i`` (ghosts included, equal on all ranks).
+            b: (n_local, k) nodal sums, first ``Σ_p V_p N_i`` (then e.g. ``Σ_p V_p u_p N_i``),
+                ghosts included, equal on all ranks.
 
         Returns:
-            (n_local, 3) nodal ``h, hu, hv`` with ``h >= 0``.
+            (n_local, k) nodal fields, the first (``h``) >= 0.
         """
         comm = self.disc.comm
         mass = self.lumped_mass[:, None]

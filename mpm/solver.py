@@ -230,9 +230,13 @@ class MPMSolver:
         local = p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
                     tensor[2], p.area, p.volume, n_nodes)
         self._nodal = self.disc.nodal_sum(local)
-        fields = self.projector.project(self._nodal[:, 6:9])
-        for k, name in enumerate(("h", "hu", "hv")):
-            self.fields[name].x.array[:] = fields[:, k]
+        h = self.projector.project(self._nodal[:, 6:7])[:, 0]
+        mass = self._nodal[:, 0]
+        safe = np.where(mass > 0.0, mass, 1.0)
+        self.fields["h"].x.array[:] = h
+        for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
+            self.fields[name].x.array[:] = np.where(mass > 0.0, h * self._nodal[:, col] / safe,
+                                                    0.0)
 
     def _forces(self, b: Basis) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
         """Body force (× N_i) and force tensor ``-V_p σ^∇_p`` (× ∇N_i) per particle."""
