@@ -32,6 +32,8 @@ class RunResult:
         steps: Number of time steps.
         t: Final time.
         out_dir: Output folder (None when nothing was written).
+        particles: Number of particles of a particle method (the solver's ``n_particles``
+            attribute at the end of the run), None for mesh methods.
     """
 
     x: np.ndarray | None = None
@@ -47,6 +49,7 @@ class RunResult:
     steps: int = 0
     t: float = 0.0
     out_dir: Path | None = None
+    particles: int | None = None
 
 
 class _Progress:
@@ -149,7 +152,7 @@ def run(
     final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
     envelope = peaks.gathered()
     result = RunResult(series=recorder.series, wall_time=runner.wall_time, steps=info.step,
-                       t=info.t, out_dir=out)
+                       t=info.t, out_dir=out, particles=getattr(solver, "n_particles", None))
     if final is not None:
         for key in ("x", "y", "h", "hu", "hv", "z"):
             setattr(result, key, final[key])

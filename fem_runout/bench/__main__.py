@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 from types import ModuleType
 
-from fem_runout.bench import step_cost, tg2_report
+from fem_runout.bench import step_cost, suite, tg2_report
 
-COMMANDS: dict[str, ModuleType] = {"step-cost": step_cost, "tg2-report": tg2_report}
+COMMANDS: dict[str, ModuleType] = {
+    "step-cost": step_cost, "suite": suite, "tg2-report": tg2_report}
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 
 
