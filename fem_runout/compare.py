@@ -79,13 +79,16 @@ def plot_fields(results: dict[str, Any], path: Path, title: str) -> None:
     vmax = max(float(r.h.max()) for r in results.values()) or 1.0
     for ax, name in zip(axes, names, strict=False):
         h, ext = _grid(results[name])
-        im = ax.imshow(h, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis")
+        aspect = "equal" if (ext[1] - ext[0]) <= 4 * (ext[3] - ext[2]) else "auto"
+        im = ax.imshow(h, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis",
+                       aspect=aspect)
         ax.set_title(f"{name}: h at t = {results[name].t:.3g} s")
         fig.colorbar(im, ax=ax, label="h [m]")
     if len(names) > 1:
         a, b = results[names[0]], results[names[1]]
         (ha, ext), (hb, _) = _grid(a), _grid(b)
-        im = axes[-1].imshow(np.abs(ha - hb), origin="lower", extent=ext, cmap="magma")
+        im = axes[-1].imshow(np.abs(ha - hb), origin="lower", extent=ext, cmap="magma",
+                             aspect=aspect)
         axes[-1].set_title(f"|h_{names[0]} − h_{names[1]}|")
         fig.colorbar(im, ax=axes[-1], label="[m]")
     fig.suptitle(title)

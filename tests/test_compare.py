@@ -67,3 +67,27 @@ def test_compare_bad_input_exits_2(args, tmp_path):
     proc = _compare(*args, "--out", tmp_path / "x")
     assert proc.returncode == 2, proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_two_method_report_and_difference(tmp_path):
+    """The two-method path (used once mpm lands), on a run and a perturbed copy of it."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from fem_runout.api import run
+    from fem_runout.compare import plot_fields, plot_series, report
+    from fem_runout.config import load_case
+
+    case = load_case(ROOT / "cases" / "ritter.yaml", ["domain.cells=[40,2]", "time.end=0.5"])
+    a = run(case, write=False, comm=MPI.COMM_SELF)
+    b = replace(a, h=a.h + 0.01 * (a.x > 50), particles=1234)
+    results = {"tg2": a, "mpm": b}
+    text = report("ritter.yaml", tmp_path, results, 1)
+    assert "not implemented" not in text and "| particles | – | 1234 |" in text
+    # |Δh| = 0.01 on the 20 node columns x = 52.5 … 100 m (dx = 2.5 m): area 48.75 m × 2 m
+    line = next(x for x in text.splitlines() if x.startswith("Depth difference"))
+    assert "L∞ = 0.01 m" in line and "L1 = 0.975 m³" in line, line
+    plot_fields(results, tmp_path / "f.png", "t")
+    plot_series(results, tmp_path / "s.png", "t")
+    assert (tmp_path / "f.png").stat().st_size > 10_000

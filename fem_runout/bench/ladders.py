@@ -103,10 +103,18 @@ def thacker(n: int, method: str, comm, periods: float = 1.0) -> Level:
         wt = ref.omega(case.gravity) * r.t
         rho = np.hypot(r.x - ref.L / 2 - ref.ETA * math.cos(wt),
                        r.y - ref.L / 2 - ref.ETA * math.sin(wt))
-        inner = rho <= 0.8 * ref.A
-        vals = (l1((r.h - exact)[inner], w[inner]), l1(r.h - exact, w))
+        err = r.h - exact
+        bands = [(rho >= a) & (rho < b) for a, b in ((0, 0.25), (0.25, 0.5), (0.5, 0.8))]
+        vals = (l1(err[rho <= 0.8 * ref.A], w[rho <= 0.8 * ref.A]), l1(err, w),
+                *(l1(err[b], w[b]) for b in bands))
     vals = _bcast(comm, vals)
-    return _level(f"{n}×{n}", case, r, vals[0], full_l1=vals[1])
+    return _level(f"{n}×{n}", case, r, vals[0], full_l1=vals[1], l1_rho_0_025=vals[2],
+                  l1_rho_025_05=vals[3], l1_rho_05_08=vals[4])
+
+
+def thacker_two_periods(n: int, method: str, comm) -> Level:
+    """:func:`thacker` after two periods."""
+    return thacker(n, method, comm, periods=2.0)
 
 
 def mangeney(nx: int, method: str, comm) -> Level:

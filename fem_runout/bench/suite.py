@@ -29,8 +29,12 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "ritter", (100, 200, 400, 800), ladders.ritter),
     Benchmark("thacker", "Thacker's planar surface in a paraboloid",
               "L1 of h after one period on the disc 0.2 m inside the wet/dry line [m³] "
-              "(full-domain L1 in the last column)", "thacker", (20, 40, 80, 160),
+              "(then: the whole domain, and the L1 on bands 0–0.25, 0.25–0.5, 0.5–0.8 m from "
+              "the disc centre)", "thacker", (20, 40, 80, 160),
               ladders.thacker),
+    Benchmark("thacker_2T", "Thacker's planar surface in a paraboloid, two periods",
+              "as above, after two periods (8.97 s)", "thacker", (20, 40, 80),
+              ladders.thacker_two_periods),
     Benchmark("mangeney", "Dam break on a Coulomb incline (Mangeney et al. 2000)",
               "L1 of h per metre of width at t = 2 s, where the upstream wall has not yet acted "
               "[m²]", "mangeney", (50, 100, 200, 400), ladders.mangeney),

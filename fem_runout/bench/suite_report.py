@@ -135,6 +135,34 @@ def _hard(hard: dict[str, Rows]) -> list[str]:
     return lines + [""]
 
 
+def _orders_text(results: dict, name: str, key: str | None = None) -> str:
+    rows = results.get(name, {}).get("tg2", {}).get(1, [])
+    errs = [r["error"] if key is None else r["extra"][key] for r in rows]
+    return ", ".join(f"{o:.2f}" for o in orders(errs)[1:] if o is not None) or "–"
+
+
+def reading(results: dict) -> str:
+    """Fill :data:`READING` with this run's TG2-PC numbers (``–`` where a ladder is missing)."""
+    def last(name: str, key: str | None = None) -> float:
+        rows = results.get(name, {}).get("tg2", {}).get(1, [])
+        if not rows:
+            return math.nan
+        return rows[-1]["error"] if key is None else rows[-1]["extra"][key]
+
+    centre = [r["extra"]["l1_rho_0_025"] for r in
+              results.get("thacker", {}).get("tg2", {}).get(1, [])][-2:]
+    return READING.format(
+        shear_orders=_orders_text(results, "shear_decay"),
+        thacker_orders=_orders_text(results, "thacker"),
+        thacker2_orders=_orders_text(results, "thacker_2T"),
+        thacker_full_orders=_orders_text(results, "thacker", "full_l1"),
+        centre_band=" → ".join(f"{c:.2e}" for c in centre) or "–",
+        ritter_orders=_orders_text(results, "ritter"),
+        mangeney_orders=_orders_text(results, "mangeney"),
+        voellmy_last=last("voellmy_sheet"), dam_last=last("dam_break"),
+        dam_front=last("dam_break", "front_11"))
+
+
 def write(benches: list[Benchmark], results: dict, hard: dict[str, Rows], out: Path,
           figures: Path, total: float) -> str:
     """Write the report and the figures; return the markdown text."""
@@ -167,7 +195,7 @@ def write(benches: list[Benchmark], results: dict, hard: dict[str, Rows], out: P
             lines += _table2(results)
     if hard:
         lines += _hard(hard)
-    lines += [READING, ""]
+    lines += [reading(results), ""]
     text = "\n".join(lines)
     out.parent.mkdir(parents=True, exist_ok=True)
     figures.mkdir(parents=True, exist_ok=True)
