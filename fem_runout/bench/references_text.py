@@ -117,9 +117,11 @@ end time). This needs a velocity/momentum limiter in thin layers, not a change o
 The thin film passes in a single time step: the step size follows the wave speed only and does
 not account for the gravity acceleration on the slope.
 
-**Speed.** Wall times are the time loop only, on a 2-core machine shared with two other jobs:
-two ranks are slower than one below about 10^4 cells (halo exchanges dominate) and faster on
-the larger grids (dam break 900×40, hemisphere 200×200). Error against time: on the problems
-with a dry front, halving the error costs about 2^3 = 8 times the wall time (first order in
-space and time in 2D); on Thacker about 2^1.5 ≈ 3 times.
+**Speed.** Wall times are the time loop only, on a 2-core machine that other jobs shared
+while this ran, so the 2-rank column is noisy: {faster} of {levels} levels ran faster on 2
+ranks than on 1. On an idle machine TG2-PC's step is 1.8 times faster on 2 ranks at 62 500 cells
+(`docs/step_cost.md`); below about 10^4 cells the halo exchanges dominate. Error against time:
+on the 1D strips (Ritter, Mangeney; cells and steps double per level) halving the error costs
+2.5–4 times the wall time; on Thacker's 2D ladder (cells ×4, steps ×2–2.5 per level) the error
+drops 3.4 times for 6–8 times the wall time.
 """

@@ -151,7 +151,11 @@ def reading(results: dict) -> str:
 
     centre = [r["extra"]["l1_rho_0_025"] for r in
               results.get("thacker", {}).get("tg2", {}).get(1, [])][-2:]
+    pairs = [(r1["wall"], r2["wall"]) for by_method in results.values()
+             for by_ranks in by_method.values()
+             for r1, r2 in zip(by_ranks.get(1, []), by_ranks.get(2, []), strict=False)]
     return READING.format(
+        faster=sum(w2 < w1 for w1, w2 in pairs), levels=len(pairs),
         shear_orders=_orders_text(results, "shear_decay"),
         thacker_orders=_orders_text(results, "thacker"),
         thacker2_orders=_orders_text(results, "thacker_2T"),
