@@ -1,5 +1,8 @@
 """Command line: ``python -m fem_runout CASE.yaml [--out DIR] [--method M] [--set k=v ...]``.
 
+``python -m fem_runout compare CASE.yaml [--out DIR] [--overwrite]`` runs the case with every
+implemented method and writes a side-by-side comparison (:mod:`fem_runout.compare`).
+
 Exit codes: 0 success, 1 unexpected failure, 2 bad input (case file, override, option,
 output directory), 3 the simulation had to stop (:class:`~fem_runout.errors.SimulationError`).
 Input is fully validated before anything is written or any heavy module is imported.
@@ -147,6 +150,17 @@ def _report_crash(world: _World) -> int:
     return 1
 
 
+def _compare(argv: list[str]) -> int:
+    """Run ``python -m fem_runout compare ...`` (exit codes as for a run)."""
+    world = _World()
+    try:
+        from fem_runout.compare import main as compare_main
+
+        return compare_main(argv)
+    except Exception:
+        return _report_crash(world)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line.
 
@@ -156,6 +170,9 @@ def main(argv: list[str] | None = None) -> int:
     Returns:
         The exit code: 0 done, 1 unexpected failure, 2 bad input, 3 simulation stopped.
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["compare"]:
+        return _compare(argv[1:])
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help or a usage error (argparse already printed it)

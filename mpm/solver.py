@@ -95,12 +95,15 @@ class MPMSolver:
         return float(self.comm.allreduce(float(self.particles.volume.sum()), op=MPI.SUM))
 
     def stable_dt(self) -> float:
-        """``COURANT Δx / max(|v_p| + sqrt(g h_p))``, and the explicit viscous limit."""
+        """``COURANT Δx / max(|v_p| + sqrt(g h_p))``, the slope and viscous limits."""
         p = self.particles
         speed = np.hypot(p.u, p.v) + np.sqrt(self.g * p.h)
         top = self.comm.allreduce(float(speed.max(initial=0.0)), op=MPI.MAX)
         dx = min(self.disc.spacing)
         dt = COURANT * dx / top if top > 0 else np.inf
+        slope = self.comm.allreduce(self._slope, op=MPI.MAX)
+        if slope > 0.0:  # from rest on the slope, at most half a cell per step
+            dt = min(dt, float(np.sqrt(dx / (self.g * slope))))
         mu = self.rheology.viscosity if self.rheology is not None else 0.0
         if mu > 0.0:  # the yield stress is bounded (|σ_Y| <= τ_Y): only μ limits the step
             dt = min(dt, VISCOUS * self.rho * dx * dx / (8.0 * mu))
@@ -242,6 +245,7 @@ class MPMSolver:
         """Body force (× N_i) and force tensor ``-V_p σ^∇_p`` (× ∇N_i) per particle."""
         p, rho, g = self.particles, self.rho, self.g
         grad_z = interpolate_gradient(b.nodes, b.dN, self.z)
+        self._slope = float(np.hypot(grad_z[:, 0], grad_z[:, 1]).max(initial=0.0))
         if self.still_depth is None:
             weight = rho * g * p.volume  # eq. 34: -m_p g ∇Z
             pressure = 0.5 * rho * g * p.volume * p.h  # eq. 26: ½ ρ g h V_p

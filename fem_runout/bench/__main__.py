@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from types import ModuleType
 
-from fem_runout.bench import dampm_report, real_case, step_cost, tg2_report
+from fem_runout.bench import dampm_report, real_case, step_cost, suite, tg2_report
 
 COMMANDS: dict[str, ModuleType] = {
     "step-cost": step_cost,
+    "suite": suite,
     "tg2-report": tg2_report,
     "dampm-report": dampm_report,
     "real-case": real_case,

@@ -92,8 +92,9 @@ def zalesak_ratios(
     rminus = np.ones_like(pminus)
     pos = pplus > 0.0
     neg = pminus < 0.0
-    rplus[pos] = np.minimum(1.0, np.maximum(qplus[pos], 0.0) / pplus[pos])
-    rminus[neg] = np.minimum(1.0, np.minimum(qminus[neg], 0.0) / pminus[neg])
+    with np.errstate(over="ignore"):  # Q/P overflows for subnormal P; min(1, inf) = 1 is right
+        rplus[pos] = np.minimum(1.0, np.maximum(qplus[pos], 0.0) / pplus[pos])
+        rminus[neg] = np.minimum(1.0, np.minimum(qminus[neg], 0.0) / pminus[neg])
     return rplus, rminus
 
 

@@ -55,9 +55,13 @@ class TG2Solver:
         return self.transport.outflow_volume
 
     def stable_dt(self) -> float:
-        """Transport CFL limit (the only limit: friction/rheology are implicit or stabilised)."""
+        """Return the transport CFL limit, at most the slope acceleration limit.
+
+        Friction and rheology are implicit or stabilised and do not limit the step.
+        """
         dt = self.transport.stable_dt()
-        return dt if self.reaction is None else 2.0 * dt
+        dt = dt if self.reaction is None else 2.0 * dt
+        return min(dt, self.transport.acceleration_dt())
 
     def advance(self, dt: float) -> None:
         """One step of size dt (Strang-split when there is a diffusion–reaction part)."""

@@ -1,0 +1,154 @@
+"""Hard cases for stability (``cases/hard/*.yaml``): run one and check the criteria.
+
+Criteria (issue 5), checked after every step of the run:
+
+* the run reaches its end time (the runner raises on NaN or negative depth);
+* no NaN in ``h``, ``hu``, ``hv`` and ``h >= 0`` at every node;
+* volume balance: ``|V(t) + outflow(t) - V0| <= 1e-10 V0`` (outflow is 0 on closed domains);
+* ``max speed <= sqrt(2 g ΔZ) + 2 sqrt(g h_max)`` over the run, with ``ΔZ`` the elevation range
+  of the domain and ``h_max`` the largest depth seen (speed on nodes with ``h > front_threshold``).
+
+The pit case must also come to rest: final max speed below :data:`REST_SPEED`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+HARD_DIR = Path(__file__).resolve().parents[2] / "cases" / "hard"
+VOLUME_TOL = 1e-10
+REST_SPEED = 1e-3  # m/s, final max speed of the pit case
+MUST_STOP = ("hard_pit",)
+
+#: (case file stem, method) -> what fails; the tests mark these xfail(strict=True).
+KNOWN_FAILURES: dict[tuple[str, str], str] = {}
+
+
+def hard_case_files() -> list[Path]:
+    """Return the hard-case YAML files, sorted by name."""
+    return sorted(HARD_DIR.glob("*.yaml"))
+
+
+class _Watch:
+    """Callback: minimum depth and NaN count of the local owned nodes after every step."""
+
+    def __init__(self) -> None:
+        self.min_h = math.inf
+        self.nan = 0
+
+    def start(self, solver, info) -> None:
+        self.step(solver, info)
+
+    def step(self, solver, info) -> None:
+        own = slice(0, solver.V.dofmap.index_map.size_local)
+        arrays = [solver.fields[k].x.array[own] for k in ("h", "hu", "hv")]
+        self.nan += int(sum(np.count_nonzero(~np.isfinite(a)) for a in arrays))
+        if arrays[0].size:
+            self.min_h = min(self.min_h, float(np.nanmin(arrays[0])))
+
+    def output(self, solver, info) -> None:
+        pass
+
+    def finish(self, solver, info) -> None:
+        pass
+
+
+@dataclass
+class HardResult:
+    """Outcome of one hard case (the same on every rank).
+
+    Attributes:
+        name: Case name.
+        method: Method.
+        t: Time reached [s]; end: end time [s].
+        steps: Number of steps; wall: wall time of the loop [s].
+        min_h: Smallest depth seen; nan: NaN values seen.
+        volume_error: max over the run of |V + outflow - V0| / V0.
+        max_speed: max over the run of the node speed; speed_bound: the allowed bound.
+        final_speed: max speed at the end; particles: particle count (None for mesh methods).
+        failures: Criteria that failed (empty when the case passes).
+    """
+
+    name: str
+    method: str
+    t: float = 0.0
+    end: float = 0.0
+    steps: int = 0
+    wall: float = 0.0
+    min_h: float = math.nan
+    nan: int = 0
+    volume_error: float = math.nan
+    max_speed: float = math.nan
+    speed_bound: float = math.nan
+    final_speed: float = math.nan
+    particles: int | None = None
+    failures: list[str] = field(default_factory=list)
+
+
+def speed_bound(g: float, dz: float, h_max: float) -> float:
+    """``sqrt(2 g ΔZ) + 2 sqrt(g h_max)`` [m/s]."""
+    return math.sqrt(2.0 * g * dz) + 2.0 * math.sqrt(g * h_max)
+
+
+def _elevation_range(solver, comm) -> float:
+    from mpi4py import MPI
+
+    z = solver.fields["z"].x.array
+    zmax = comm.allreduce(float(z.max()) if z.size else -math.inf, op=MPI.MAX)
+    zmin = comm.allreduce(float(z.min()) if z.size else math.inf, op=MPI.MIN)
+    return zmax - zmin
+
+
+def run_hard_case(case, comm) -> HardResult:
+    """Run ``case`` with its method (collective) and check every criterion."""
+    from mpi4py import MPI
+
+    from fem_runout.api import build_solver
+    from fem_runout.errors import SimulationError
+    from fem_runout.output import SeriesRecorder
+    from fem_runout.runner import Runner, Schedule
+
+    res = HardResult(case.name, case.method, end=case.time.end)
+    solver = build_solver(case, comm)
+    res.particles = getattr(solver, "n_particles", None)
+    recorder = SeriesRecorder(Path("series.csv"), case.output.front_threshold,
+                              case.material.density)
+    recorder.write_csv = lambda: None  # type: ignore[method-assign]
+    watch = _Watch()
+    t = case.time
+    runner = Runner(solver, Schedule(t.end, t.cfl, t.end, t.max_steps, t.dt_max),
+                    [recorder, watch])
+    try:
+        info = runner.run()
+        res.t, res.steps = info.t, info.step
+    except SimulationError as exc:
+        res.failures.append(f"stopped: {exc}")
+    res.wall = runner.wall_time
+    res.min_h = comm.allreduce(watch.min_h, op=MPI.MIN)
+    res.nan = comm.allreduce(watch.nan, op=MPI.SUM)
+    _judge(res, recorder.series, case, _elevation_range(solver, comm))
+    return res
+
+
+def _judge(res: HardResult, s: dict[str, np.ndarray], case, dz: float) -> None:
+    """Fill the measured values and the list of failed criteria."""
+    res.volume_error = float(np.max(np.abs(s["mass_error"]))) if s["t"].size else math.nan
+    res.max_speed = float(np.max(s["max_speed"]))
+    res.final_speed = float(s["max_speed"][-1])
+    res.speed_bound = speed_bound(case.gravity, dz, float(np.max(s["max_depth"])))
+    if res.t < res.end * (1 - 1e-12):
+        res.failures.append(f"reached t = {res.t:.4g} < end {res.end:.4g}")
+    if res.nan:
+        res.failures.append(f"{res.nan} NaN values")
+    if not res.min_h >= 0.0:
+        res.failures.append(f"negative depth {res.min_h:.3e}")
+    if not res.volume_error <= VOLUME_TOL:
+        res.failures.append(f"volume error {res.volume_error:.2e} > {VOLUME_TOL:g}")
+    if not res.max_speed <= res.speed_bound:
+        res.failures.append(f"max speed {res.max_speed:.3g} > bound {res.speed_bound:.3g}")
+    if res.name in MUST_STOP and not res.final_speed <= REST_SPEED:
+        res.failures.append(f"final speed {res.final_speed:.2e} > {REST_SPEED:g} (not at rest)")

@@ -1,0 +1,215 @@
+"""Benchmark definitions: one refinement ladder per reference, each level measured per method.
+
+Each :class:`Benchmark` runs a level with :func:`fem_runout.api.run` (collective) and returns a
+:class:`Level`: the error against its reference in the benchmark's stated norm, plus cells,
+particles (``RunResult.particles`` if the method sets it), steps and wall time of the loop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CASES = Path(__file__).resolve().parents[2] / "cases"
+
+
+@dataclass
+class Level:
+    """One measured level (JSON-serialisable)."""
+
+    level: str
+    cells: int
+    particles: int | None
+    steps: int
+    wall: float
+    error: float
+    extra: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """As a plain dict."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """A reference and its ladder.
+
+    Attributes:
+        name: Short name (figure file ``bench_<name>.png``).
+        title: Section title.
+        norm: The error measure, in words.
+        reference: Formula and source, in words (markdown).
+        levels: Level parameters, coarse to fine.
+        measure: ``measure(param, method, comm) -> Level``.
+        claims_order: Whether an observed order is reported.
+    """
+
+    name: str
+    title: str
+    norm: str
+    reference: str
+    levels: tuple[Any, ...]
+    measure: Callable[[Any, str, Any], Level]
+    claims_order: bool = True
+
+
+def _run(source, method: str, comm, overrides: tuple = ()):
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+
+    case = load_case(source, [*overrides, ("method", method)])
+    return case, run(case, write=False, comm=comm)
+
+
+def _level(label: str, case, r, error: float, **extra: float) -> Level:
+    nx, ny = case.domain.resolved_cells
+    return Level(label, nx * ny, getattr(r, "particles", None), r.steps, r.wall_time,
+                 float(error), {k: float(v) for k, v in extra.items()})
+
+
+def _bcast(comm, value):
+    return comm.bcast(value, root=0)
+
+
+def ritter(nx: int, method: str, comm) -> Level:
+    """L1 of h per metre of width at t = 4 s."""
+    from fem_runout.references.norms import l1, nodal_weights
+    from fem_runout.references.ritter import ritter_depth
+
+    case, r = _run(CASES / "ritter.yaml", method, comm,
+                   (f"domain.cells=[{nx},2]", "output.every=4.0"))
+    err = None
+    if r.x is not None:
+        err = l1(r.h - ritter_depth(r.x, r.t, 1.0, 50.0, case.gravity),
+                 nodal_weights(r.x, r.y)) / 2.0
+    return _level(f"{nx}×2", case, r, _bcast(comm, err))
+
+
+def thacker(n: int, method: str, comm, periods: float = 1.0) -> Level:
+    """L1 of h on the disc 0.2 m inside the wet/dry line; full-domain L1 as extra."""
+    from fem_runout.references import thacker as ref
+    from fem_runout.references.norms import l1, nodal_weights
+
+    case, r = _run(ref.case_dict(n, periods), method, comm)
+    vals = None
+    if r.x is not None:
+        exact = ref.depth(r.x, r.y, r.t, case.gravity)
+        w = nodal_weights(r.x, r.y)
+        wt = ref.omega(case.gravity) * r.t
+        rho = np.hypot(r.x - ref.L / 2 - ref.ETA * math.cos(wt),
+                       r.y - ref.L / 2 - ref.ETA * math.sin(wt))
+        err = r.h - exact
+        bands = [(rho >= a) & (rho < b) for a, b in ((0, 0.25), (0.25, 0.5), (0.5, 0.8))]
+        vals = (l1(err[rho <= 0.8 * ref.A], w[rho <= 0.8 * ref.A]), l1(err, w),
+                *(l1(err[b], w[b]) for b in bands))
+    vals = _bcast(comm, vals)
+    return _level(f"{n}×{n}", case, r, vals[0], full_l1=vals[1], l1_rho_0_025=vals[2],
+                  l1_rho_025_05=vals[3], l1_rho_05_08=vals[4])
+
+
+def thacker_two_periods(n: int, method: str, comm) -> Level:
+    """:func:`thacker` after two periods."""
+    return thacker(n, method, comm, periods=2.0)
+
+
+def mangeney(nx: int, method: str, comm) -> Level:
+    """L1 of h (per metre of width) where the upstream wall has not yet disturbed the flow."""
+    from fem_runout.references import mangeney as ref
+    from fem_runout.references.norms import l1, nodal_weights
+
+    case, r = _run(ref.case_dict(nx), method, comm)
+    vals = None
+    if r.x is not None:
+        g = case.gravity
+        exact = ref.depth(r.x, r.t, ref.H0, ref.X0, ref.SLOPE, ref.MU, g)
+        keep = r.x >= ref.valid_from(r.t, ref.H0, ref.SLOPE, ref.MU, 0.0, g) + 1.0
+        wet = r.x[r.h > 1e-3]
+        vals = (l1((r.h - exact)[keep], nodal_weights(r.x, r.y)[keep]),
+                float(wet.max()) if wet.size else math.nan,
+                ref.front(r.t, ref.H0, ref.X0, ref.SLOPE, ref.MU, g))
+    vals = _bcast(comm, vals)
+    return _level(f"{nx}×2", case, r, vals[0], front=vals[1], exact_front=vals[2])
+
+
+def voellmy_sheet(nx: int, method: str, comm) -> Level:
+    """Relative error of the sheet speed (mean over the window) at 3 relaxation times."""
+    from fem_runout.references import voellmy_sheet as ref
+
+    case, r = _run(ref.case_dict(nx), method, comm)
+    err = None
+    if r.x is not None:
+        win = (r.x >= ref.WINDOW[0]) & (r.x <= ref.WINDOW[1])
+        u = float(np.mean(r.hu[win] / r.h[win]))
+        exact = ref.speed(r.t, 0.3, 0.1, 500.0, 1.0, case.gravity)
+        err = (abs(u / exact - 1.0), u, exact)
+    err = _bcast(comm, err)
+    return _level(f"{nx}×2", case, r, err[0], speed=err[1], exact=err[2])
+
+
+def shear_decay(ny: int, method: str, comm) -> Level:
+    """Relative error of the decay rate of the viscous shear mode after 1 s."""
+    from fem_runout.references import shear_decay as ref
+
+    case, r = _run(ref.case_dict(ny), method, comm)
+    err = None
+    if r.x is not None:
+        rate = ref.measured_rate(r.x, r.y, r.h, r.hu, r.t)
+        exact = ref.decay_rate(500.0, 1000.0)
+        err = (abs(rate / exact - 1.0), rate, exact)
+    err = _bcast(comm, err)
+    return _level(f"20×{ny}", case, r, err[0], rate=err[1], exact=err[2])
+
+
+DAM_TIMES = (5.5, 11.0)
+
+
+def dam_break(nx: int, method: str, comm) -> Level:
+    """Relative front error at 11 s (seed Table 1 measure); fronts at 2.75 … 11 s as extras."""
+    from fem_runout.references.inclined_dam_break import exact_front
+
+    ny = max(2, nx // 22)
+    case, r = _run(CASES / "inclined_dam_break_450.yaml", method, comm,
+                   (f"domain.cells=[{nx},{ny}]", "output.every=5.5"))
+    s = r.series
+    fronts = {f"front_{t}": float(s["front_x"][int(np.argmin(np.abs(s["t"] - t)))])
+              for t in DAM_TIMES}
+    rel = {f"rel_{t}": abs(fronts[f"front_{t}"] / exact_front(t) - 1.0) for t in DAM_TIMES}
+    return _level(f"{nx}×{ny}", case, r, rel["rel_11.0"], front_5_5=fronts["front_5.5"],
+                  front_11=fronts["front_11.0"], rel_5_5=rel["rel_5.5"])
+
+
+def hemisphere(n: int, method: str, comm) -> Level:
+    """Spread max − min of the front radius along x, y, −x and the diagonal at 1.2 s [m]."""
+    from fem_runout.references.norms import front_radius
+
+    case, r = _run(CASES / "hemisphere.yaml", method, comm, (f"domain.cells=[{n},{n}]",))
+    vals = None
+    if r.x is not None:
+        dirs = {"r_x": (1, 0), "r_y": (0, 1), "r_mx": (-1, 0),
+                "r_diag": (math.sqrt(0.5), math.sqrt(0.5))}
+        vals = {k: front_radius(r.x, r.y, r.h, (25.0, 25.0), 1e-3, d) for k, d in dirs.items()}
+    vals = _bcast(comm, vals)
+    spread = max(vals.values()) - min(vals.values())
+    return _level(f"{n}×{n}", case, r, spread, **vals)
+
+
+def lake_at_rest(n: int, method: str, comm) -> Level:
+    """L1 of the free-surface error on wet nodes, seed §4.2 with Voellmy friction and Bingham."""
+    from fem_runout.references.norms import l1, linf, nodal_weights
+
+    case, r = _run(CASES / "lake_at_rest.yaml", method, comm, (
+        f"domain.cells=[{n},{n}]", "material.friction={law: voellmy, phi_deg: 26, xi: 500}",
+        "material.rheology={law: bingham, viscosity: 2000, yield_stress: 30}"))
+    vals = None
+    if r.x is not None:
+        w = nodal_weights(r.x, r.y)
+        eta = np.where(r.h > 1e-6, r.h + r.z - 10.0, 0.0)
+        vals = {"h_l1": l1(eta, w), "h_linf": linf(eta), "hu_l1": l1(r.hu, w),
+                "hu_linf": linf(r.hu), "hv_l1": l1(r.hv, w), "hv_linf": linf(r.hv)}
+    vals = _bcast(comm, vals)
+    return _level(f"{n}×{n}", case, r, vals["h_l1"], **vals)

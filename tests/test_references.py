@@ -1,0 +1,118 @@
+"""Every benchmark reference: exact formulas checked, and each method measured at coarse levels.
+
+The measured tests iterate over every implemented method, with the bounds stated per test
+(from the TG2-PC numbers in docs/benchmarks.md, with a margin).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fem_runout.api import IMPLEMENTED_METHODS
+from fem_runout.bench import ladders
+from fem_runout.bench.suite_report import orders
+from fem_runout.references import mangeney, shear_decay, thacker, voellmy_sheet
+from fem_runout.references.ritter import ritter_depth
+
+COMM = MPI.COMM_SELF
+METHODS = sorted(IMPLEMENTED_METHODS)
+
+
+def _ladder(fn, params, method):
+    levels = [fn(p, method, COMM) for p in params]
+    errors = [lv.error for lv in levels]
+    print(f"{fn.__name__} [{method}]: errors {errors}, orders {orders(errors)[1:]}")
+    return levels, errors, [o for o in orders(errors) if o is not None]
+
+
+# --- the formulas themselves ---------------------------------------------------------------
+
+
+def test_thacker_volume_is_constant_and_the_surface_is_a_rotating_plane():
+    x, y = np.meshgrid(np.linspace(0, 4, 801), np.linspace(0, 4, 801))
+    vols = [thacker.depth(x, y, t).sum() * (4 / 800) ** 2 for t in np.linspace(0, 4.5, 7)]
+    exact = math.pi * thacker.A**2 * thacker.H0 / 2  # paraboloid cap of radius a, height h0
+    assert np.allclose(vols, exact, rtol=2e-3)
+    assert thacker.period() == pytest.approx(2 * math.pi / math.sqrt(2 * 9.81 * 0.1))
+    assert thacker.depth(np.array([2.5]), np.array([2.0]), 0.0)[0] == pytest.approx(0.1)
+
+
+def test_mangeney_is_ritter_in_the_accelerating_frame():
+    x = np.linspace(0, 60, 601)
+    t = 1.7
+    shift = 0.5 * mangeney.acceleration(0.5, 0.2) * t * t
+    h = mangeney.depth(x + shift, t, 1.0, 20.0, 0.5, 0.2)
+    assert np.allclose(h, ritter_depth(x, t, 1.0, 20.0, 9.81), atol=1e-14)
+    assert mangeney.depth(np.array([0.0]), t, 1.0, 20.0, 0.3, 0.3)[0] == 1.0
+
+
+def test_voellmy_speed_solves_its_ode():
+    t = np.linspace(0.1, 20, 200)
+    u = np.array([voellmy_sheet.speed(s, 0.3, 0.1, 500.0, 1.0) for s in t])
+    dudt = np.gradient(u, t, edge_order=2)
+    rhs = 9.81 * 0.2 - 9.81 * u**2 / 500.0
+    assert np.allclose(dudt, rhs, atol=2e-3)
+    assert voellmy_sheet.terminal_speed(0.3, 0.1, 500.0, 1.0) == pytest.approx(10.0)
+
+
+def test_shear_decay_rate_formula():
+    assert shear_decay.decay_rate(500.0, 1000.0) == pytest.approx(0.5 * (2 * math.pi / 10) ** 2)
+
+
+# --- measured, every implemented method ----------------------------------------------------
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_thacker_second_order_away_from_the_wet_dry_line(method):
+    """TG2-PC: L1 inside 0.2 m of the wet/dry line 2.1e-2, 4.8e-3, 1.4e-3 (orders 2.13, 1.74)."""
+    levels, errors, ords = _ladder(ladders.thacker, (20, 40, 80), method)
+    assert errors[-1] < 2e-3
+    assert min(ords) > 1.6
+    assert levels[-1].extra["full_l1"] < 5e-3  # whole domain, wet/dry line included
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_mangeney_coulomb_incline_converges(method):
+    """TG2-PC: 0.471, 0.257, 0.134 m² (orders 0.87, 0.94): first order, as for Ritter."""
+    levels, errors, ords = _ladder(ladders.mangeney, (50, 100, 200), method)
+    assert errors[0] > errors[1] > errors[2]
+    assert min(ords) > 0.8 and errors[-1] < 0.15
+    assert abs(levels[-1].extra["front"] - levels[-1].extra["exact_front"]) < 2.5
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_ritter_converges_first_order(method):
+    _, errors, ords = _ladder(ladders.ritter, (100, 200, 400), method)
+    assert min(ords) > 0.9 and errors[-1] < 0.16
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_voellmy_sheet_speed(method):
+    """TG2-PC: relative speed error 4.1e-2 at dx = 8 m, 5.9e-3 at dx = 1 m."""
+    _, errors, _ = _ladder(ladders.voellmy_sheet, (50, 400), method)
+    assert errors[1] < errors[0] and errors[1] < 1e-2
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_shear_decay_second_order(method):
+    """TG2-PC: relative rate error 3.3e-2, 8.0e-3, 1.7e-3 (orders 2.04, 2.27)."""
+    _, errors, ords = _ladder(ladders.shear_decay, (10, 20, 40), method)
+    assert min(ords) > 1.8 and errors[-1] < 3e-3
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_inclined_dam_break_front_error_shrinks(method):
+    """Relative front error at 11 s: TG2-PC 0.080 (dx = 2 m), 0.065 (dx = 1 m)."""
+    _, errors, _ = _ladder(ladders.dam_break, (225, 450), method)
+    assert errors[1] < errors[0] < 0.1
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_hemisphere_and_lake_at_rest(method):
+    hemi = ladders.hemisphere(50, method, COMM)
+    assert hemi.error <= math.sqrt(2) * 1.0 + 1e-9  # one diagonal cell (dx = 1 m)
+    assert hemi.extra["r_x"] == hemi.extra["r_y"] == hemi.extra["r_mx"] > 5.0
+    lake = ladders.lake_at_rest(25, method, COMM)
+    assert max(lake.extra.values()) <= 1e-12, lake.extra
