@@ -70,6 +70,16 @@ def p2g_momentum(nodes, N, mass, u, v, n_nodes):
 
 
 @numba.njit(cache=True)
+def volume_sums(nodes, N, volume, n_nodes):
+    """Nodal ``Σ_p V_p N_i``."""
+    out = np.zeros(n_nodes)
+    for p in range(nodes.shape[0]):
+        for k in range(4):
+            out[nodes[p, k]] += volume[p] * N[p, k]
+    return out
+
+
+@numba.njit(cache=True)
 def g2p(nodes, N, dN, vx, vy):
     """Grid-to-particle velocity (seed eq. 38) and velocity gradient.
 

@@ -35,7 +35,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from mpm.grid import Basis, ParticleGrid
-from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
+from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum, volume_sums
 from mpm.migrate import migrate
 from mpm.particles import Particles
 from mpm.projection import GridProjector
@@ -82,6 +82,7 @@ class MPMSolver:
         self.sent = 0
         self._problem: str | None = None
         self.walls = [s for s in disc.sides if s.kind == "wall"]
+        self.open_sides = [s for s in disc.sides if s.kind == "open"]
         self._refresh()
 
     # -- solver interface ------------------------------------------------------------------
@@ -154,8 +155,9 @@ class MPMSolver:
         mass = g[:, 0]
         active = mass > 0.0
         safe = np.where(active, mass, 1.0)
-        vx = np.where(active, (g[:, 1] + dt * g[:, 3]) / safe, 0.0)
-        vy = np.where(active, (g[:, 2] + dt * g[:, 4]) / safe, 0.0)
+        fx, fy = self._open_side_pressure(g[:, 3], g[:, 4])
+        vx = np.where(active, (g[:, 1] + dt * fx) / safe, 0.0)
+        vy = np.where(active, (g[:, 2] + dt * fy) / safe, 0.0)
         for side in self.walls:  # the wall reaction first: friction acts along the wall
             (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
         if self.friction is not None:
@@ -165,6 +167,24 @@ class MPMSolver:
             hs = np.where(h > 0, h, 1.0)
             vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
         return vx, vy
+
+    def _open_side_pressure(self, fx: np.ndarray, fy: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Add the pressure of the fluid beyond open sides: a transmissive boundary.
+
+        The boundary term of eq. 28, ``∫ σ^∇ h φ_i n ds``, with the outside state equal to the
+        boundary node's: ``-½ ρ g (h_i² - H_i²) ∫φ_i ds n``. The seed's zero traction makes an
+        open side a free edge (a reservoir touching it drains into vacuum); with this term an
+        open side lets the flow out like TG2-PC's outflow boundary and holds a layer at rest.
+        """
+        fx, fy = fx.copy(), fy.copy()
+        h = self.fields["h"].x.array
+        for side in self.open_sides:
+            hb = h[side.nodes]
+            big = 0.0 if self.still_depth is None else self.still_depth[side.nodes]
+            push = 0.5 * self.rho * self.g * (hb * hb - big * big) * side.weight
+            fx[side.nodes] -= push * side.normal[0]
+            fy[side.nodes] -= push * side.normal[1]
+        return fx, fy
 
     def _remapped_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """MUSL: nodal velocity ``Σ_p m_p v_p^{k+1} N_i / M_i`` from the updated particles.
@@ -228,12 +248,13 @@ class MPMSolver:
         b = self.grid.basis(p.cell, p.xi, p.eta)
         self._basis = b
         n_nodes = self.disc.coords.shape[0]
+        volume = self.disc.nodal_sum(volume_sums(b.nodes, b.N, p.volume, n_nodes))
+        h = self.projector.project(volume[:, None])[:, 0]
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
         local = p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
                     tensor[2], p.area, p.volume, n_nodes)
         self._nodal = self.disc.nodal_sum(local)
-        h = self.projector.project(self._nodal[:, 6:7])[:, 0]
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
         self.fields["h"].x.array[:] = h
