@@ -43,6 +43,9 @@ bench: setup
 	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 --out docs/step_cost.md
 	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 \
 		--case cases/hemisphere_bingham.yaml --out docs/step_cost_rheology.md
+	$(PY) -m fem_runout.bench step-cost --method mpm --cells 50 158 500 --steps 10 --ranks 1 2 \
+		--set 'initial.depth=1 + sqrt(maximum(25 - (x-25)**2 - (y-25)**2, 0))' \
+		--out docs/step_cost_dampm.md
 
 clean:
 	rm -rf results .pytest_cache

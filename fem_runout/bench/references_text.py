@@ -69,13 +69,15 @@ REFERENCES = {
         "T = 1 s; must stay exact."),
 }
 
-#: The reading; ``{...}`` fields are filled from the results of the run (TG2-PC serial rows).
+#: The reading; ``{...}`` fields are filled from the results of the run (serial rows).
 READING = """## Reading
 
-**Which methods.** Only TG2-PC (`tg2`) is implemented at the time of this run; DAMPM (`mpm`)
-rows, curves and hard-case lines appear here with no code change once `mpm` is in
-`fem_runout.api.IMPLEMENTED_METHODS` (re-run `make bench`). Nothing below compares the two
-methods yet; the paper's DAMPM numbers are quoted beside ours where the paper has them.
+**Which methods.** TG2-PC (`tg2`) and DAMPM (`mpm`, 2 × 2 particles per cell, FLIP 0.9) on the
+same grids, case files and outputs. In short: TG2-PC is the accurate one — it converges on
+every reference, at the expected order. DAMPM is 2–4 times cheaper per level, as good or better
+on a sliding sheet, on symmetry, mass and well-balancing, passes every hard case, but does
+**not converge in L1** on the depth of expanding flows (Ritter, the Coulomb incline, Thacker)
+nor on the viscous decay.
 
 **Accuracy of TG2-PC.**
 - Smooth, wet problems converge at second order: the viscous shear mode (orders
@@ -99,29 +101,43 @@ methods yet; the paper's DAMPM numbers are quoted beside ours where the paper ha
   diagonal agrees within one diagonal cell; the radius (14.5 m) is larger than the paper's
   "about 13 m diameter", which cannot be reconciled with any 1e-3 m threshold.
 
+**Accuracy of DAMPM.**
+- Where it wins: the Voellmy sheet (a uniform layer; no gradients to sample) is within
+  {mpm_voellmy_last:.3%} of the exact speed at dx = 1 m, better than TG2-PC's time-integration
+  error; the lake at rest holds to 3e-13 (L1) with the full material, beside the paper's
+  DAMPM 1.26e-12; the hemisphere front is the same along x, y and −x and the diagonal within a
+  diagonal cell; particle mass is exact and the grid volume matches it to 1e-13.
+- Where it loses: L1 errors do not decrease under refinement — Ritter orders
+  {mpm_ritter_orders}, Coulomb incline {mpm_mangeney_orders}, Thacker {mpm_thacker_orders},
+  shear-mode decay {mpm_shear_orders}. The particle velocities follow the exact Ritter fan,
+  but at a fixed number of particles per cell the particles thin out where the flow stretches
+  (1.2 m apart on 0.5 m cells at the Ritter tip) and the volume-exact grid depth is noisy there
+  at every grid size; the explicit particle stress misses the viscous decay rate by 30 %.
+  Fronts lag more than TG2-PC's: {mpm_dam_front:.1f} m at 11 s on the finest dam-break grid
+  (TG2-PC {dam_front:.1f} m, exact 395.7 m).
+
 **Seed Table 1.** Our relative front errors (exact dry-bed tip as reference) are larger than
 the paper's ({dam_last:.3f} at 11 s on the finest grid against 0.0121) and shrink slowly with the
 grid (thin tip, threshold 1e-3 m). But the paper's fronts (97.3 m at 5.5 s, 240.6 m at 11 s)
 are 61 m and 155 m behind the exact tip of the frictionless dry-bed problem it states, so its
-"expected estimate" cannot have been this tip; by position we are much closer to it
-({dam_front:.1f} m at 11 s against the exact 395.7 m). We are worse than the paper in the
-printed relative-error column, and we cannot tell which reference the paper used.
+"expected estimate" cannot have been this tip; by position both our methods are much closer to
+it. We are worse than the paper in the printed relative-error column, and we cannot tell which
+reference the paper used.
 
-**Stability (hard cases).** TG2-PC passes four of the seven hard cases (checkerboard, edge
-release with open boundaries, stiff Bingham μ = 1e5 Pa s, thin film) and conserves volume to
-1e-15 and keeps h ≥ 0 in all seven. It fails the speed bound in three: the cliff, the pit and the
-rough terrain. The cause is the same each time: in drying nodes the momentum does not drain
-with the depth, so u = hu/h grows without bound at h ~ 1e-3 m (the run keeps going because the
-depth stays positive; on the rough terrain the step then collapses and the run cannot reach its
-end time). This needs a velocity/momentum limiter in thin layers, not a change of the test.
-The thin film passes in a single time step: the step size follows the wave speed only and does
-not account for the gravity acceleration on the slope.
+**Stability (hard cases).** Both methods pass all seven hard cases on 1 and 2 ranks (table
+above; `tests/test_hard_cases.py`, `tests/mpi/test_hard_cases_mpi.py`): end time reached,
+h >= 0, volume to 1e-15 (TG2-PC) and 1e-13 (DAMPM, the projection's round-off), speeds within
+the bound. TG2-PC needed two fixes found by these cases: a speed bound in drying nodes from the
+deeper neighbours (Riemann invariant plus bed drop; before, the cliff, pit and rough terrain
+reached 81–5000 m/s) and a time-step limit from the slope acceleration (the thin film used to
+run in one 3 s step). DAMPM's explicit stress makes stiff Bingham expensive (1976 steps
+against TG2-PC's 17).
 
-**Speed.** Wall times are the time loop only, on a 2-core machine that other jobs shared
-while this ran, so the 2-rank column is noisy: {faster} of {levels} levels ran faster on 2
-ranks than on 1. On an idle machine TG2-PC's step is 1.8 times faster on 2 ranks at 62 500 cells
-(`docs/step_cost.md`); below about 10^4 cells the halo exchanges dominate. Error against time:
-on the 1D strips (Ritter, Mangeney; cells and steps double per level) halving the error costs
-2.5–4 times the wall time; on Thacker's 2D ladder (cells ×4, steps ×2–2.5 per level) the error
-drops 3.4 times for 6–8 times the wall time.
+**Speed.** Wall times are the time loop only, on the 2-core machine; {faster} of {levels}
+levels ran faster on 2 ranks than on 1 (below about 10^4 cells the halo exchanges dominate;
+see `docs/step_cost.md` and `docs/step_cost_dampm.md` for large grids). Error against time:
+on the 1D strips (Ritter, Mangeney; cells and steps double per level) halving TG2-PC's error
+costs 2.5–4 times the wall time; on Thacker's 2D ladder (cells ×4, steps ×2–2.5 per level) the
+error drops 3.4 times for 6–8 times the wall time. DAMPM levels cost 2–4 times less than the
+same TG2-PC level, but buying accuracy with refinement does not work for it yet.
 """

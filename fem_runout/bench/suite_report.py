@@ -135,16 +135,16 @@ def _hard(hard: dict[str, Rows]) -> list[str]:
     return lines + [""]
 
 
-def _orders_text(results: dict, name: str, key: str | None = None) -> str:
-    rows = results.get(name, {}).get("tg2", {}).get(1, [])
+def _orders_text(results: dict, name: str, key: str | None = None, method: str = "tg2") -> str:
+    rows = results.get(name, {}).get(method, {}).get(1, [])
     errs = [r["error"] if key is None else r["extra"][key] for r in rows]
     return ", ".join(f"{o:.2f}" for o in orders(errs)[1:] if o is not None) or "–"
 
 
 def reading(results: dict) -> str:
-    """Fill :data:`READING` with this run's TG2-PC numbers (``–`` where a ladder is missing)."""
-    def last(name: str, key: str | None = None) -> float:
-        rows = results.get(name, {}).get("tg2", {}).get(1, [])
+    """Fill :data:`READING` with this run's numbers (``–`` where a ladder is missing)."""
+    def last(name: str, key: str | None = None, method: str = "tg2") -> float:
+        rows = results.get(name, {}).get(method, {}).get(1, [])
         if not rows:
             return math.nan
         return rows[-1]["error"] if key is None else rows[-1]["extra"][key]
@@ -164,7 +164,13 @@ def reading(results: dict) -> str:
         ritter_orders=_orders_text(results, "ritter"),
         mangeney_orders=_orders_text(results, "mangeney"),
         voellmy_last=last("voellmy_sheet"), dam_last=last("dam_break"),
-        dam_front=last("dam_break", "front_11"))
+        dam_front=last("dam_break", "front_11"),
+        mpm_voellmy_last=last("voellmy_sheet", method="mpm"),
+        mpm_ritter_orders=_orders_text(results, "ritter", method="mpm"),
+        mpm_mangeney_orders=_orders_text(results, "mangeney", method="mpm"),
+        mpm_thacker_orders=_orders_text(results, "thacker", method="mpm"),
+        mpm_shear_orders=_orders_text(results, "shear_decay", method="mpm"),
+        mpm_dam_front=last("dam_break", "front_11", method="mpm"))
 
 
 def write(benches: list[Benchmark], results: dict, hard: dict[str, Rows], out: Path,
