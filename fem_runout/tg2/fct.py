@@ -56,27 +56,6 @@ def patch_extrema(cells, values, mask, vmax, vmin):
             vmin[i] = min(vmin[i], lo)
 
 
-@numba.njit(cache=True)
-def deeper_patch_max(cells, speed, depth, z, mask, g, vmax):
-    """Speed bound from the deeper neighbours: Riemann invariant plus the drop in bed.
-
-    For every other node ``j`` of i's cells with ``mask[j]`` and ``depth[j] >= depth[i]``,
-    ``vmax[i]`` is extended by ``sqrt((|u_j| + 2 c_j)² + 2 g max(Z_j - Z_i, 0)) - 2 c_i``
-    (``c = sqrt(g h)``): the speed a flow from ``j`` can reach at ``i`` by expanding into
-    shallower water (``u + 2c`` is constant across a rarefaction) and falling down the bed.
-    """
-    for k in range(cells.shape[0]):
-        for a in range(4):
-            i = cells[k, a]
-            ci = np.sqrt(g * max(depth[i], 0.0))
-            for b in range(4):
-                j = cells[k, b]
-                if b != a and mask[j] and depth[j] >= depth[i]:
-                    r = speed[j] + 2.0 * np.sqrt(g * depth[j])
-                    drop = max(z[j] - z[i], 0.0)
-                    vmax[i] = max(vmax[i], np.sqrt(r * r + 2.0 * g * drop) - 2.0 * ci)
-
-
 def zalesak_ratios(
     pplus: np.ndarray, pminus: np.ndarray, qplus: np.ndarray, qminus: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,7 @@ import numpy as np
 from dolfinx import fem, la
 
 from fem_runout.mesh import Discretization, GhostReducer, open_boundary_measure
-from fem_runout.tg2 import fct
+from fem_runout.tg2 import bounds, fct
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.low_order import (
     cell_means,
@@ -30,8 +30,6 @@ from fem_runout.tg2.low_order import (
     velocity,
 )
 
-#: Allowed overshoot of the speed bound, in local wave speeds sqrt(g h) (see _bound_speed).
-SPEED_MARGIN = 1.5
 #: Relaxation of the momentum bounds, as a fraction of the local range of the momentum.
 MOMENTUM_SLACK = 0.5
 
@@ -149,13 +147,7 @@ class Transport:
         from mpi4py import MPI
 
         if self._slope is None:
-            d = self.disc
-            z = self.z.x.array[d.cell_nodes]
-            grad = np.einsum("cija,cj->ca", d.C, z) / d.cell_area[:, None]  # cell mean ∇Z
-            slope = np.zeros(d.coords.shape[0])
-            np.maximum.at(slope, d.cell_nodes.ravel(), np.repeat(np.hypot(*grad.T), 4))
-            self.reducer.reduce(slope, "max")
-            self._slope = slope
+            self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
         wet = self.h.x.array[: self.disc.n_owned_nodes] > self.tol
         s = self._slope[: self.disc.n_owned_nodes][wet]
         local = float(s.max()) if s.size else 0.0
@@ -197,7 +189,7 @@ class Transport:
         else:
             fct.scatter_cells(self._owned, aec, np.ones(len(self._owned)), corr)
         q_new = q_low + d.nodal_sum(corr) / d.lumped_mass[:, None]
-        self._bound_speed(q0, q_low, q_new)
+        self._bound_speed(q_low, q_new)
         self._finalise(q_new)
         self.set_state(q_new)
 
@@ -329,40 +321,10 @@ class Transport:
         lower[:, 1:] = lo[:, 2:] - slack
         return upper, lower
 
-    def _bound_speed(self, q0: np.ndarray, q_low: np.ndarray, q: np.ndarray) -> None:
-        """Bound each node's speed by what its deeper neighbours can feed it.
-
-        The limiter bounds only the mass variable; in a draining layer (h → 0) the momentum
-        antidiffusion can leave ``|q| / h`` far above any neighbour's speed. The bound at node
-        ``i`` is ``max_j [sqrt((|u_j| + 2 c_j)² + 2 g max(Z_j - Z_i, 0)) - 2 c_i] +
-        SPEED_MARGIN c_i`` over the other nodes ``j`` of its patch that are at least as deep
-        (low-order state, ``c = sqrt(g h)``; the node's own low-order speed when it is the
-        deepest): the speed a flow from ``j`` reaches at ``i`` by expanding into shallower
-        water (``u + 2c`` is constant across a rarefaction) and falling down the bed, plus a
-        margin of ``SPEED_MARGIN`` local wave speeds for smooth high-order overshoots (without
-        it the Ritter L1 error rose from 0.137 to 0.233). Where the speed is above, the
-        momentum is scaled back (direction kept).
-
-        History, measured on the hard cases of issue 5: a bound of 1.5 × the patch maximum of
-        all low-order speeds (the node's own included) let a drying rim node on a slope keep
-        its momentum while its depth drained (81 m/s after 0.84 s in "pit", bound 20 m/s); a
-        multiplicative margin on the deeper neighbours compounded along chains of decreasing
-        depth (70 m/s in the splash below the 20 m "cliff", bound 57 m/s; now 44 m/s).
-        """
-        nn = q.shape[0]
-        speed = np.ascontiguousarray(_speed(q_low, self.tol, self.kappa))
-        depth = np.ascontiguousarray(q_low[:, 0])
-        smax = np.full(nn, -np.inf)
-        fct.deeper_patch_max(self.disc.cell_nodes, speed, depth, self.z.x.array, depth > self.tol,
-                             self.g, smax)
-        self.reducer.reduce(smax, "max")
-        alone = ~np.isfinite(smax)  # no neighbour at least as deep: the node's own speed
-        smax[alone] = speed[alone]
-        norm = np.hypot(q[:, 1], q[:, 2])
-        wave = np.sqrt(self.g * np.maximum(depth, 0.0))
-        limit = q[:, 0] * (np.maximum(smax, 0.0) + SPEED_MARGIN * wave)
-        over = (q[:, 0] > self.tol) & (norm > limit)
-        q[over, 1:] *= (limit[over] / norm[over])[:, None]
+    def _bound_speed(self, q_low: np.ndarray, q: np.ndarray) -> None:
+        """Scale back momenta above the deeper-neighbour bound (:func:`.bounds.bound_speed`)."""
+        bounds.bound_speed(self.disc.cell_nodes, self.reducer, q_low, q, self.z.x.array, self.g,
+                           self.tol, _speed(q_low, self.tol, self.kappa))
 
     def _finalise(self, q: np.ndarray) -> None:
         """Walls: zero normal momentum; dry nodes: zero momentum; outflow bookkeeping."""
