@@ -13,7 +13,7 @@ import numpy as np
 __all__ = ["P2G_COLUMNS", "g2p", "interpolate", "interpolate_gradient", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
-P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "vol", "vol_u", "vol_v")
+P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
 
 
 @numba.njit(cache=True)
@@ -37,9 +37,9 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
         n_nodes: Number of local nodes.
 
     Returns:
-        (n_nodes, 9) nodal sums in the order of :data:`P2G_COLUMNS`.
+        (n_nodes, 7) nodal sums in the order of :data:`P2G_COLUMNS`.
     """
-    out = np.zeros((n_nodes, 9))
+    out = np.zeros((n_nodes, 7))
     for p in range(nodes.shape[0]):
         for k in range(4):
             i = nodes[p, k]
@@ -52,8 +52,6 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
             out[i, 4] += body_y[p] * w + sxy[p] * gx + syy[p] * gy
             out[i, 5] += area[p] * w
             out[i, 6] += volume[p] * w
-            out[i, 7] += volume[p] * u[p] * w
-            out[i, 8] += volume[p] * v[p] * w
     return out
 
 
@@ -66,16 +64,6 @@ def p2g_momentum(nodes, N, mass, u, v, n_nodes):
             i = nodes[p, k]
             out[i, 0] += mass[p] * u[p] * N[p, k]
             out[i, 1] += mass[p] * v[p] * N[p, k]
-    return out
-
-
-@numba.njit(cache=True)
-def volume_sums(nodes, N, volume, n_nodes):
-    """Nodal ``Σ_p V_p N_i``."""
-    out = np.zeros(n_nodes)
-    for p in range(nodes.shape[0]):
-        for k in range(4):
-            out[nodes[p, k]] += volume[p] * N[p, k]
     return out
 
 

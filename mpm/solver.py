@@ -35,7 +35,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from mpm.grid import Basis, ParticleGrid
-from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum, volume_sums
+from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
 from mpm.migrate import migrate
 from mpm.particles import Particles
 from mpm.projection import GridProjector
@@ -248,13 +248,12 @@ class MPMSolver:
         b = self.grid.basis(p.cell, p.xi, p.eta)
         self._basis = b
         n_nodes = self.disc.coords.shape[0]
-        volume = self.disc.nodal_sum(volume_sums(b.nodes, b.N, p.volume, n_nodes))
-        h = self.projector.project(volume[:, None])[:, 0]
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
         local = p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
                     tensor[2], p.area, p.volume, n_nodes)
         self._nodal = self.disc.nodal_sum(local)
+        h = self.projector.project(self._nodal[:, 6:7])[:, 0]
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
         self.fields["h"].x.array[:] = h
