@@ -47,11 +47,14 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     u = np.broadcast_to(np.asarray(u_fn(x, y), float), x.shape)
     v = np.broadcast_to(np.asarray(v_fn(x, y), float), x.shape)
     grid = ParticleGrid(disc)
-    particles = seed_particles(grid, init["h"], u, v, case.numerics.particles_per_direction)
+    still = still_water_depth(case, comm, disc.coords, init["h"])
+    # Gauss points make the lake at rest exact; elsewhere the alias-free uniform lattice
+    layout = "uniform" if still is None else "gauss"
+    particles = seed_particles(grid, init["h"], u, v, case.numerics.particles_per_direction,
+                               layout)
     particles, _ = migrate(grid, particles)
     num = case.numerics
     friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
     rheology = rheology_from_spec(case.material.rheology, case.material.density)
-    still = still_water_depth(case, comm, disc.coords, init["h"])
     return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
-                     friction, rheology, still, num.flip)
+                     friction, rheology, still, num.flip, num.particles_per_direction)

@@ -1,7 +1,9 @@
 """Numba kernels of the particle ↔ grid transfers (no Python loop over particles).
 
-``p2g`` scatters the particle mass, momentum, area, volume sums and forces of seed eqs. 33-34
-to the Q1 nodes of each particle's cell; ``g2p`` gathers the nodal velocity (seed eq. 38) and
+Every kernel takes per-particle node indices, weights and weight gradients with any number
+of nodes per particle (4 for point values in a cell, 9 for the GIMP domains of
+:mod:`mpm.gimp`). ``p2g`` scatters the particle mass, momentum, area, volume sums and forces
+of seed eqs. 33-34 to those nodes; ``g2p`` gathers the nodal velocity (seed eq. 38) and
 its gradient (for the strain increment of seed eq. 40).
 """
 
@@ -21,9 +23,9 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
     """Particle-to-grid sums (seed eqs. 33-34).
 
     Args:
-        nodes: (n, 4) local dofs of each particle's cell.
-        N: (n, 4) basis values at the particles.
-        dN: (n, 4, 2) basis gradients at the particles.
+        nodes: (n, k) node indices of each particle.
+        N: (n, k) weights at the particles.
+        dN: (n, k, 2) weight gradients at the particles.
         mass: ``m_p`` [kg].
         u: x-velocity [m/s].
         v: y-velocity [m/s].
@@ -41,7 +43,7 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
     """
     out = np.zeros((n_nodes, 7))
     for p in range(nodes.shape[0]):
-        for k in range(4):
+        for k in range(nodes.shape[1]):
             i = nodes[p, k]
             w = N[p, k]
             gx, gy = dN[p, k, 0], dN[p, k, 1]
@@ -60,7 +62,7 @@ def p2g_momentum(nodes, N, mass, u, v, n_nodes):
     """Nodal momentum ``Σ_p m_p v_p N_i`` only, (n_nodes, 2) (the MUSL re-mapping)."""
     out = np.zeros((n_nodes, 2))
     for p in range(nodes.shape[0]):
-        for k in range(4):
+        for k in range(nodes.shape[1]):
             i = nodes[p, k]
             out[i, 0] += mass[p] * u[p] * N[p, k]
             out[i, 1] += mass[p] * v[p] * N[p, k]
@@ -72,9 +74,9 @@ def g2p(nodes, N, dN, vx, vy):
     """Grid-to-particle velocity (seed eq. 38) and velocity gradient.
 
     Args:
-        nodes: (n, 4) local dofs of each particle's cell.
-        N: (n, 4) basis values at the particles.
-        dN: (n, 4, 2) basis gradients at the particles.
+        nodes: (n, k) node indices of each particle.
+        N: (n, k) weights at the particles.
+        dN: (n, k, 2) weight gradients at the particles.
         vx: Nodal x-velocity.
         vy: Nodal y-velocity.
 
@@ -86,7 +88,7 @@ def g2p(nodes, N, dN, vx, vy):
     v = np.zeros(n)
     grad = np.zeros((n, 2, 2))
     for p in range(n):
-        for k in range(4):
+        for k in range(nodes.shape[1]):
             i = nodes[p, k]
             u[p] += N[p, k] * vx[i]
             v[p] += N[p, k] * vy[i]
@@ -103,7 +105,7 @@ def interpolate(nodes, N, values):
     out = np.zeros(n)
     for p in range(n):
         acc = 0.0
-        for k in range(4):
+        for k in range(nodes.shape[1]):
             acc += N[p, k] * values[nodes[p, k]]
         out[p] = acc
     return out
@@ -115,7 +117,7 @@ def interpolate_gradient(nodes, dN, values):
     n = nodes.shape[0]
     out = np.zeros((n, 2))
     for p in range(n):
-        for k in range(4):
+        for k in range(nodes.shape[1]):
             out[p, 0] += dN[p, k, 0] * values[nodes[p, k]]
             out[p, 1] += dN[p, k, 1] * values[nodes[p, k]]
     return out

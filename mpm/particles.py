@@ -25,7 +25,7 @@ from mpm.kernels import interpolate
 __all__ = ["FLOAT_FIELDS", "Particles", "seed_particles"]
 
 #: Per-particle float arrays (the ``id`` is int64).
-FLOAT_FIELDS = ("xi", "eta", "volume", "h", "u", "v", "sxx", "syy", "sxy")
+FLOAT_FIELDS = ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy")
 
 
 @dataclass
@@ -34,6 +34,8 @@ class Particles:
 
     Attributes:
         xi, eta: Reference coordinates in the cell, in [0, 1].
+        lx, ly: Half-widths of the particle's domain [m] (:mod:`mpm.gimp`), stretched with
+            the flow; splitting keeps them at most half a cell (:mod:`mpm.split`).
         volume: ``V_p = m_p/ρ`` [m³] (fixed).
         h: Depth ``h_p`` [m] (seed eq. 42).
         u, v: Velocity [m/s].
@@ -44,6 +46,8 @@ class Particles:
 
     xi: np.ndarray
     eta: np.ndarray
+    lx: np.ndarray
+    ly: np.ndarray
     volume: np.ndarray
     h: np.ndarray
     u: np.ndarray
@@ -76,7 +80,7 @@ class Particles:
         return Particles(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
     def pack(self) -> np.ndarray:
-        """(n, 11) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
+        """(n, 13) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
         out = np.empty((len(self), len(FLOAT_FIELDS) + 2))
         for k, name in enumerate(FLOAT_FIELDS):
             out[:, k] = getattr(self, name)
@@ -105,14 +109,20 @@ def seed_particles(
     u_nodes: np.ndarray,
     v_nodes: np.ndarray,
     per_direction: int,
+    layout: str = "uniform",
 ) -> Particles:
     """Seed ``per_direction²`` particles in every owned cell where the initial depth is positive.
 
-    Particles sit at the tensor Gauss–Legendre points of the cell with areas ``A_p = w_p |K|``;
-    depth and velocity are the Q1 interpolants of the nodal initial fields, so
-    ``V_p = A_p h_h(x_p)``. With two or more points per direction the particle quadrature is
-    exact for ``∫ φ_i φ_j``: the consistent L2 projection of the particle volumes returns the
-    nodal initial depth exactly (see :mod:`mpm.projection`).
+    ``uniform``: particles at the centres of the ``n × n`` sub-cells, areas ``|K|/n²`` and
+    domains equal to the sub-cells (they tile the material; the lattice is alias-free on the
+    grid, which makes DAMPM converge at first order on Ritter's dam break, docs/dampm.md).
+    ``gauss``: particles at the tensor Gauss–Legendre points with areas ``A_p = w_p |K|``:
+    with two or more points per direction the particle quadrature is exact for ``∫ φ_i φ_j``,
+    so the consistent L2 projection of the particle volumes returns the nodal initial depth
+    exactly (the lake at rest, :mod:`mpm.projection`); domain half-widths ``Δ/(2 n)`` cut to
+    the distance to the cell's edge, so the GIMP weights start as the point values.
+    Depth and velocity are the Q1 interpolants of the nodal initial fields, so
+    ``V_p = A_p h_h(x_p)`` (for ``uniform`` the exact volume of the sub-cell).
 
     Args:
         grid: The particle grid.
@@ -120,12 +130,20 @@ def seed_particles(
         u_nodes: Nodal initial x-velocity.
         v_nodes: Nodal initial y-velocity.
         per_direction: Particles per cell per direction.
+        layout: ``"uniform"`` (sub-cell centres) or ``"gauss"`` (Gauss points).
 
     Returns:
         The particles of this rank (cells without depth get none).
     """
     ref, wxy = basix.make_quadrature(basix.CellType.quadrilateral, 2 * per_direction - 1)
     gx, gy = ref[:, 0], ref[:, 1]  # the Gauss points DOLFINx integrates the mass matrix with
+    if layout == "uniform":  # sub-cell centres, in the same order as basix's points
+        centre = (np.arange(per_direction) + 0.5) / per_direction
+        gx, gy = (np.searchsorted(np.unique(a), a) for a in (ref[:, 0], ref[:, 1]))
+        gx, gy = centre[gx], centre[gy]
+        wxy = np.full(per_direction**2, 1.0 / per_direction**2)
+    elif layout != "gauss":
+        raise ValueError(f"unknown particle layout {layout!r} (allowed: gauss, uniform)")
     index = grid.owned_cells()
     n_loc = per_direction**2
     xi, eta = np.tile(gx.ravel(), index.size), np.tile(gy.ravel(), index.size)
@@ -138,6 +156,8 @@ def seed_particles(
     u = interpolate(basis.nodes, basis.N, u_nodes)[keep]
     v = interpolate(basis.nodes, basis.N, v_nodes)[keep]
     zero = np.zeros(int(keep.sum()))
-    return Particles(xi=xi[keep], eta=eta[keep], volume=area[keep] * h[keep], h=h[keep], u=u,
-                     v=v, sxx=zero, syy=zero.copy(), sxy=zero.copy(),
+    lx, ly = (np.minimum(0.5 / per_direction, np.minimum(r, 1.0 - r)[keep]) * d
+              for r, d in ((xi, grid.dx), (eta, grid.dy)))
+    return Particles(xi=xi[keep], eta=eta[keep], lx=lx, ly=ly, volume=area[keep] * h[keep],
+                     h=h[keep], u=u, v=v, sxx=zero, syy=zero.copy(), sxy=zero.copy(),
                      cell=cell[keep].astype(np.int64), id=pid[keep].astype(np.int64))

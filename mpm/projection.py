@@ -18,18 +18,15 @@ and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ 
 
 On the structured grid the consistent mass matrix is a tensor product, ``M_C = M_y ⊗ M_x``
 with the 1D matrices ``Δ/6 tridiag(1, 4, 1)`` (2 at the ends), so ``M_C^{-1} b`` is two sweeps
-of tridiagonal solves (rows, then columns): exact, O(N), no iteration. Under MPI the right-hand
-side is summed into the global node array on every rank (one allreduce of ``3 (nx+1)(ny+1)``
-values) and every rank solves the whole (cheap) system.
+of tridiagonal solves (rows, then columns): exact, O(N), no iteration. The projector works on
+the global structured node array (index ``j (nx + 1) + i``), which the solver sums over the
+ranks once per step; every rank then projects the whole (cheap) grid, with no communication.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
-from mpi4py import MPI
-
-from fem_runout.mesh import Discretization
 
 __all__ = ["GridProjector", "tridiagonal_mass_solve"]
 
@@ -95,70 +92,58 @@ def _antidiffusion(cells, matrix, high, alpha, n_nodes):
 class GridProjector:
     """Project particle sums onto Q1 (lumped / consistent, FCT-blended for h >= 0).
 
+    Works on global structured node arrays (index ``j (nx + 1) + i``).
+
     Args:
-        disc: The discretization.
-        cell_nodes: (n_cells_local, 4) local dofs per cell in basix order.
+        cells: ``(nx, ny)`` cells of the rectangle.
+        spacing: ``(Δx, Δy)`` [m].
     """
 
-    def __init__(self, disc: Discretization, cell_nodes: np.ndarray) -> None:
-        self.disc = disc
-        self.cells = np.ascontiguousarray(cell_nodes[: disc.n_owned_cells])
-        dx, dy = disc.spacing
-        self.area = dx * dy  # uniform cells, exactly as the particles see them
-        self.matrix = self.area * (np.eye(4) / 4.0 - _MASS_REF)
-        lumped = np.zeros(disc.coords.shape[0])
-        np.add.at(lumped, self.cells.ravel(), 0.25 * self.area)
-        self.lumped_mass = disc.nodal_sum(lumped)
-        nx, ny = disc.cells
-        xmin, _, ymin, _ = disc.extent
-        col = np.rint((disc.coords[:, 0] - xmin) / dx).astype(np.int64)
-        row = np.rint((disc.coords[:, 1] - ymin) / dy).astype(np.int64)
+    def __init__(self, cells: tuple[int, int], spacing: tuple[float, float]) -> None:
+        nx, ny = cells
         self.shape = (ny + 1, nx + 1)
-        self.node_index = row * (nx + 1) + col  # structured index of every local node
-        self.owned = np.arange(disc.n_owned_nodes)
+        self.area = spacing[0] * spacing[1]
+        self.matrix = self.area * (np.eye(4) / 4.0 - _MASS_REF)
+        i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+        base = (j * (nx + 1) + i).ravel()
+        self.cells = np.stack([base, base + 1, base + nx + 1, base + nx + 2], axis=1)
+        lumped = np.zeros((ny + 1) * (nx + 1))
+        np.add.at(lumped, self.cells.ravel(), 0.25 * self.area)
+        self.lumped_mass = lumped
         self.iterations = 0
 
     def consistent(self, b: np.ndarray) -> np.ndarray:
-        """``M_C^{-1} b`` for (n_local, k) nodal sums (equal on all ranks); (n_local, k)."""
+        """``M_C^{-1} b`` for (n_nodes, k) nodal sums; (n_nodes, k)."""
         k = b.shape[1]
-        full = np.zeros((self.shape[0] * self.shape[1], k))
-        full[self.node_index[self.owned]] = b[self.owned]
-        if self.disc.comm.size > 1:
-            self.disc.comm.Allreduce(MPI.IN_PLACE, full, op=MPI.SUM)
         ny1, nx1 = self.shape
-        grid = full.reshape(ny1, nx1, k).transpose(2, 0, 1)  # (k, ny+1, nx+1)
+        grid = b.reshape(ny1, nx1, k).transpose(2, 0, 1)  # (k, ny+1, nx+1)
         rows = tridiagonal_mass_solve(np.ascontiguousarray(grid.reshape(k * ny1, nx1)))
         rows = rows.reshape(k, ny1, nx1).transpose(0, 2, 1).reshape(k * nx1, ny1)
         sol = tridiagonal_mass_solve(np.ascontiguousarray(rows)).reshape(k, nx1, ny1)
-        sol = sol.transpose(2, 1, 0).reshape(ny1 * nx1, k) / self.area
-        return sol[self.node_index]
+        return sol.transpose(2, 1, 0).reshape(ny1 * nx1, k) / self.area
 
     def project(self, b: np.ndarray) -> np.ndarray:
         """Blend of the lumped and consistent projections of ``b`` (see the module docstring).
 
         Args:
-            b: (n_local, k) nodal sums, first ``Σ_p V_p N_i`` (then e.g. ``Σ_p V_p u_p N_i``),
-                ghosts included, equal on all ranks.
+            b: (n_nodes, k) global nodal sums, first ``Σ_p V_p S_ip`` (then e.g.
+                ``Σ_p V_p u_p S_ip``).
 
         Returns:
-            (n_local, k) nodal fields, the first (``h``) >= 0.
+            (n_nodes, k) nodal fields, the first (``h``) >= 0.
         """
-        comm = self.disc.comm
         mass = self.lumped_mass[:, None]
         low = b / mass
         high = self.consistent(b)
         alpha = np.ones(self.cells.shape[0])
-        scale = comm.allreduce(float(np.abs(low[:, 0]).max(initial=0.0)), op=MPI.MAX)
-        tol = 1e-13 * scale
-        n_nodes = b.shape[0]
+        tol = 1e-13 * float(np.abs(low[:, 0]).max(initial=0.0))
         self.iterations = 0
         while True:
             self.iterations += 1
-            anti = _antidiffusion(self.cells, self.matrix, high, alpha, n_nodes)
-            out = low + self.disc.nodal_sum(anti) / mass
-            bad = out[:, 0] < -tol
-            hit = _cells_hit(self.cells, bad, alpha)
-            if not comm.allreduce(bool(hit.any()), op=MPI.LOR):
+            anti = _antidiffusion(self.cells, self.matrix, high, alpha, b.shape[0])
+            out = low + anti / mass
+            hit = _cells_hit(self.cells, out[:, 0] < -tol, alpha)
+            if not hit.any():
                 break
             alpha[hit] = 0.0
         out[:, 0] = np.maximum(out[:, 0], 0.0)

@@ -34,11 +34,14 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
+from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
 from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
 from mpm.migrate import migrate
+from mpm.nodal import NodalGrid
 from mpm.particles import Particles
 from mpm.projection import GridProjector
+from mpm.split import DomainSplitter
 
 __all__ = ["COURANT", "MPMSolver"]
 
@@ -62,12 +65,14 @@ class MPMSolver:
         rheology: Bingham rheology or None.
         still_depth: Nodal still-water depth ``H`` (well-balanced eq. 46) or None.
         flip: FLIP fraction of the particle velocity update (0: PIC, eq. 38 of the seed).
+        per_direction: Particles per cell and direction at the start (the split limit).
     """
 
     def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
                  z: np.ndarray, density: float, gravity: float,
                  friction: FrictionLaw | None = None, rheology: Bingham | None = None,
-                 still_depth: np.ndarray | None = None, flip: float = 0.0) -> None:
+                 still_depth: np.ndarray | None = None, flip: float = 0.0,
+                 per_direction: int = 2) -> None:
         self.disc, self.grid, self.particles = disc, grid, particles
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
@@ -76,13 +81,18 @@ class MPMSolver:
         self.z = np.asarray(z, dtype=float)
         self.fields = {k: fem.Function(disc.V, name=k) for k in ("h", "hu", "hv", "z")}
         self.fields["z"].x.array[:] = self.z
-        self.projector = GridProjector(disc, grid.cell_nodes)
-        self.lumped_mass = self.projector.lumped_mass
+        self.nodal = NodalGrid(disc)
+        self.z_g = self.nodal.to_global(self.z)
+        self.still_g = None if still_depth is None else self.nodal.to_global(still_depth)
+        self.projector = GridProjector(disc.cells, disc.spacing)
+        self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
+        n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
+        self.splitter = DomainSplitter(grid, per_direction, n_ids)
         self.outflow_volume = 0.0
         self.sent = 0
         self._problem: str | None = None
-        self.walls = [s for s in disc.sides if s.kind == "wall"]
-        self.open_sides = [s for s in disc.sides if s.kind == "open"]
+        self.walls = [s for s in self.nodal.sides if s.kind == "wall"]
+        self.open_sides = [s for s in self.nodal.sides if s.kind == "open"]
         self._refresh()
 
     # -- solver interface ------------------------------------------------------------------
@@ -120,12 +130,17 @@ class MPMSolver:
             safe = np.where(mass > 0.0, mass, 1.0)
             du, dv, _ = g2p(b.nodes, b.N, b.dN, vx - self._nodal[:, 1] / safe,
                             vy - self._nodal[:, 2] / safe)
-            u = self.flip * (p.u + du) + (1.0 - self.flip) * u
-            v = self.flip * (p.v + dv) + (1.0 - self.flip) * v
+            stopped = ((mass > 0.0) & (vx == 0.0) & (vy == 0.0)).astype(float)
+            near, _, _ = g2p(b.nodes, b.N, b.dN, stopped, stopped)
+            flip = np.where(near > 0.0, 0.0, self.flip)  # PIC next to nodes friction stopped
+            u = flip * (p.u + du) + (1.0 - flip) * u
+            v = flip * (p.v + dv) + (1.0 - flip) * v
         p.u, p.v = u, v
         _, _, grad = g2p(b.nodes, b.N, b.dN, *self._remapped_velocity())
         self._update_depth_and_stress(dt, grad)
+        self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
+        self.particles = self.splitter.split(self.particles)
         self.particles, self.sent = migrate(self.grid, self.particles)
         self._refresh()
 
@@ -177,10 +192,10 @@ class MPMSolver:
         open side lets the flow out like TG2-PC's outflow boundary and holds a layer at rest.
         """
         fx, fy = fx.copy(), fy.copy()
-        h = self.fields["h"].x.array
+        h = self._h
         for side in self.open_sides:
             hb = h[side.nodes]
-            big = 0.0 if self.still_depth is None else self.still_depth[side.nodes]
+            big = 0.0 if self.still_g is None else self.still_g[side.nodes]
             push = 0.5 * self.rho * self.g * (hb * hb - big * big) * side.weight
             fx[side.nodes] -= push * side.normal[0]
             fy[side.nodes] -= push * side.normal[1]
@@ -193,9 +208,8 @@ class MPMSolver:
         carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
         """
         p, b = self.particles, self._basis
-        n_nodes = self.disc.coords.shape[0]
-        mom = self.disc.nodal_sum(p2g_momentum(b.nodes, b.N, self.rho * p.volume, p.u, p.v,
-                                               n_nodes))
+        mom = self.nodal.sum(p2g_momentum(b.nodes, b.N, self.rho * p.volume, p.u, p.v,
+                                          self.nodal.n_nodes))
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
         vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
@@ -244,33 +258,32 @@ class MPMSolver:
 
     def _refresh(self) -> None:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
-        p = self.particles
-        b = self.grid.basis(p.cell, p.xi, p.eta)
-        self._basis = b
-        n_nodes = self.disc.coords.shape[0]
+        p, g = self.particles, self.grid
+        self._basis = b = Basis(p.cell, *gimp_weights(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx,
+                                                       g.ny, g.dx, g.dy))
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
-        local = p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
-                    tensor[2], p.area, p.volume, n_nodes)
-        self._nodal = self.disc.nodal_sum(local)
-        h = self.projector.project(self._nodal[:, 6:7])[:, 0]
+        self._nodal = self.nodal.sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1],
+                                         tensor[0], tensor[1], tensor[2], p.area, p.volume,
+                                         self.nodal.n_nodes))
+        self._h = h = self.projector.project(self._nodal[:, 6:7])[:, 0]
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
-        self.fields["h"].x.array[:] = h
+        self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
-            self.fields[name].x.array[:] = np.where(mass > 0.0, h * self._nodal[:, col] / safe,
-                                                    0.0)
+            q = np.where(mass > 0.0, h * self._nodal[:, col] / safe, 0.0)
+            self.fields[name].x.array[:] = self.nodal.to_local(q)
 
     def _forces(self, b: Basis) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
         """Body force (× N_i) and force tensor ``-V_p σ^∇_p`` (× ∇N_i) per particle."""
         p, rho, g = self.particles, self.rho, self.g
-        grad_z = interpolate_gradient(b.nodes, b.dN, self.z)
+        grad_z = interpolate_gradient(b.nodes, b.dN, self.z_g)
         self._slope = float(np.hypot(grad_z[:, 0], grad_z[:, 1]).max(initial=0.0))
-        if self.still_depth is None:
+        if self.still_g is None:
             weight = rho * g * p.volume  # eq. 34: -m_p g ∇Z
             pressure = 0.5 * rho * g * p.volume * p.h  # eq. 26: ½ ρ g h V_p
         else:
-            big_h = interpolate(b.nodes, b.N, self.still_depth)
+            big_h = interpolate(b.nodes, b.N, self.still_g)
             weight = rho * g * p.area * (p.h - big_h)  # eq. 46: -ρ g (h - H) ∇Z
             pressure = 0.5 * rho * g * p.area * (p.h * p.h - big_h * big_h)
         body = (-weight * grad_z[:, 0], -weight * grad_z[:, 1])

@@ -5,9 +5,12 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.mesh import build_discretization
+from mpm.gimp import gimp_weights
 from mpm.grid import ParticleGrid
+from mpm.nodal import NodalGrid
 from mpm.particles import Particles, seed_particles
 from mpm.projection import GridProjector, tridiagonal_mass_solve
+from mpm.split import DomainSplitter
 
 COMM = MPI.COMM_SELF
 
@@ -74,9 +77,10 @@ def test_seeded_volume_equals_the_lumped_nodal_volume(grid):
 def test_pack_unpack_round_trip(grid):
     cell, xi, eta = _random_particles(grid, 5)
     rng = np.random.default_rng(1)
-    p = Particles(xi, eta, *rng.random((7, 5)), cell=cell, id=np.arange(5) * 2**40)
+    p = Particles(xi, eta, *rng.random((9, 5)), cell=cell, id=np.arange(5) * 2**40)
     q = Particles.unpack(p.pack())
-    for name in ("xi", "eta", "volume", "h", "u", "v", "sxx", "syy", "sxy", "cell", "id"):
+    for name in ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy", "cell",
+                 "id"):
         assert np.array_equal(getattr(p, name), getattr(q, name)), name
 
 
@@ -91,17 +95,90 @@ def test_tridiagonal_mass_solve_matches_a_dense_solve():
 
 def test_projection_is_exact_for_gauss_sampled_fields_and_positive_for_one_particle(grid):
     disc = grid.disc
-    proj = GridProjector(disc, grid.cell_nodes)
+    proj = GridProjector(disc.cells, disc.spacing)
+    nodal = NodalGrid(disc)
     x, y = disc.coords[:, 0], disc.coords[:, 1]
     h = 3.0 + np.sin(x) * np.cos(y)
-    p = seed_particles(grid, h, 0 * h, 0 * h, 2)
-    b = grid.basis(p.cell, p.xi, p.eta)
-    sums = np.zeros((x.size, 3))
-    np.add.at(sums[:, 0], b.nodes.ravel(), (p.volume[:, None] * b.N).ravel())
+    p = seed_particles(grid, h, 0 * h, 0 * h, 2, "gauss")
+    nodes, S, _ = _weights(grid, p)
+    assert np.array_equal(S, _weights(grid, p, point=True)[1])  # domains inside the cells
+    sums = np.zeros((nodal.n_nodes, 3))
+    np.add.at(sums[:, 0], nodes.ravel(), (p.volume[:, None] * S).ravel())
     out = proj.project(sums)
-    assert np.abs(out[:, 0] - h).max() < 1e-13
+    assert np.abs(nodal.to_local(out[:, 0]) - h).max() < 1e-13
     single = np.zeros_like(sums)  # one particle: the consistent projection undershoots
-    single[b.nodes[0], 0] = 0.2 * b.N[0]
+    np.add.at(single[:, 0], nodes[0], 0.2 * S[0])
     out = proj.project(single)
     assert out[:, 0].min() >= 0.0 and proj.iterations > 1
     assert abs(np.sum(proj.lumped_mass * out[:, 0]) - 0.2) < 1e-15
+
+
+def _weights(grid, p, point=False):
+    lx, ly = (0 * p.lx, 0 * p.ly) if point else (p.lx, p.ly)
+    return gimp_weights(p.cell, p.xi, p.eta, lx, ly, grid.nx, grid.ny, grid.dx, grid.dy)
+
+
+def _domain_average(grid, p, k, values):
+    """Average over particle k's clipped domain of the Q1 interpolant (fine midpoint rule)."""
+    x, y = p.positions(grid)
+    xmin, xmax, ymin, ymax = grid.xmin, grid.xmax, grid.ymin, grid.ymax
+    lo = max(x[k] - p.lx[k], xmin), max(y[k] - p.ly[k], ymin)
+    hi = min(x[k] + p.lx[k], xmax), min(y[k] + p.ly[k], ymax)
+    m = 400
+    sx = lo[0] + (np.arange(m) + 0.5) / m * (hi[0] - lo[0])
+    sy = lo[1] + (np.arange(m) + 0.5) / m * (hi[1] - lo[1])
+    X, Y = np.meshgrid(sx, sy)
+    return values(X, Y).mean()
+
+
+def test_gimp_weights_average_the_q1_basis_over_the_domain(grid):
+    cell, xi, eta = _random_particles(grid, 40, seed=5)
+    rng = np.random.default_rng(6)
+    n = cell.size
+    p = Particles(xi, eta, rng.random(n) * grid.dx / 2, rng.random(n) * grid.dy / 2,
+                  *np.ones((7, n)), cell=cell, id=np.arange(n))
+    nodes, S, dS = _weights(grid, p)
+    assert np.abs(S.sum(axis=1) - 1.0).max() < 1e-14  # partition of unity, clipped domains too
+    assert np.abs(dS.sum(axis=1)).max() < 1e-12
+    nx = grid.nx + 1
+    X0, Y0 = grid.xmin + (nodes % nx) * grid.dx, grid.ymin + (nodes // nx) * grid.dy
+    for k in range(n):
+        for node in np.unique(nodes[k]):  # the weight is the domain average of the hat function
+            x0, y0 = X0[k][nodes[k] == node][0], Y0[k][nodes[k] == node][0]
+
+            def hat(X, Y, x0=x0, y0=y0):
+                return (np.maximum(0, 1 - np.abs(X - x0) / grid.dx)
+                        * np.maximum(0, 1 - np.abs(Y - y0) / grid.dy))
+            weight = S[k][nodes[k] == node].sum()  # slots past the edge repeat a node, weight 0
+            assert abs(weight - _domain_average(grid, p, k, hat)) < 1e-5
+    f = lambda X, Y: 2.0 + 0.3 * X - 0.7 * Y  # noqa: E731  (linear: S reproduces it)
+    x, y = p.positions(grid)
+    inside = ((x - p.lx > grid.xmin) & (x + p.lx < grid.xmax) & (y - p.ly > grid.ymin)
+              & (y + p.ly < grid.ymax))
+    assert np.abs((S * f(X0, Y0)).sum(axis=1) - f(x, y))[inside].max() < 1e-11
+    assert np.abs((dS * f(X0, Y0)[..., None]).sum(axis=1) - [0.3, -0.7]).max() < 1e-11
+
+
+def test_split_halves_the_stretched_particles_and_keeps_everything_else(grid):
+    one = np.ones(grid.disc.coords.shape[0])
+    p = seed_particles(grid, one, 0 * one, 0 * one, 2)
+    n0, v0 = len(p), p.volume.sum()
+    splitter = DomainSplitter(grid, 2, int(p.id.max()) + 1)
+    p.u[:] = np.arange(n0)
+    x0, y0 = p.positions(grid)
+    middle = np.flatnonzero((np.abs(x0 - 106.0) < 2.0) & (np.abs(y0 - 0.5) < 2.0))
+    wide, tall = middle[:3], middle[5]
+    p.lx[wide] *= 4.5  # 1.125 Δx: split twice (four children each)
+    p.ly[tall] *= 2.2  # 0.55 Δy: split once
+    q = splitter.split(p)
+    assert len(q) == n0 + 3 * 3 + 1 and splitter.count == 10
+    assert np.unique(q.id).size == len(q) and np.isin(p.id, q.id).all()
+    assert abs(q.volume.sum() - v0) < 1e-14 * v0
+    assert q.lx.max() <= splitter.limit[0] and q.ly.max() <= splitter.limit[1]
+    x, y = q.positions(grid)
+    for k in (*wide, tall):  # the children tile the parent's domain, centred on it
+        kids = q.u == k
+        assert abs(np.average(x[kids], weights=q.volume[kids]) - x0[k]) < 1e-12
+        assert abs(np.average(y[kids], weights=q.volume[kids]) - y0[k]) < 1e-12
+        area = (4 * q.lx[kids] * q.ly[kids]).sum()
+        assert abs(area - 4 * p.lx[k] * p.ly[k]) < 1e-12

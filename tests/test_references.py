@@ -63,11 +63,10 @@ def test_shear_decay_rate_formula():
 
 # --- measured, every implemented method ----------------------------------------------------
 #
-# DAMPM does not converge in L1 on these references yet (issue 5 left open for it): its
-# particle velocities follow the exact Ritter fan, but at 2 particles per cell and direction the
-# particles thin out where the fan stretches the material (1.2 m apart on 0.5 m cells at 4 s),
-# and the volume-exact grid depth is noisy by +-0.2 m there at every grid size. The marks are
-# strict: a fix turns them into errors.
+# Bounds per method where they differ (DAMPM numbers from docs/benchmarks.md, with a margin).
+# DAMPM's viscous shear mode does not converge yet: each particle-grid round trip damps the
+# mode a little, and the explicit viscous step makes the number of round trips grow as 1/Δx²
+# (the mark is strict: a fix turns it into an error).
 
 
 def _methods(mpm_failure: str | None = None) -> list:
@@ -76,30 +75,39 @@ def _methods(mpm_failure: str | None = None) -> list:
             if m == "mpm" and mpm_failure else m for m in METHODS]
 
 
-@pytest.mark.parametrize(
-    "method", _methods("DAMPM L1 1.8e-2, 2.1e-2, 2.6e-2 on 20-80 cells: no convergence"))
+@pytest.mark.parametrize("method", METHODS)
 def test_thacker_second_order_away_from_the_wet_dry_line(method):
-    """TG2-PC: L1 inside 0.2 m of the wet/dry line 2.1e-2, 4.8e-3, 1.4e-3 (orders 2.13, 1.74)."""
+    """L1 inside 0.2 m of the wet/dry line, 20-80 cells.
+
+    TG2-PC 2.1e-2, 4.8e-3, 1.4e-3 (orders 2.13, 1.74); DAMPM 3.4e-3, 6.4e-4, 3.2e-4 (orders
+    2.4, 1.0: first order claimed for the particle method only).
+    """
     levels, errors, ords = _ladder(ladders.thacker, (20, 40, 80), method)
+    assert errors[0] > errors[1] > errors[2]
     assert errors[-1] < 2e-3
-    assert min(ords) > 1.6
+    assert min(ords) > (1.6 if method == "tg2" else 0.8)
     assert levels[-1].extra["full_l1"] < 5e-3  # whole domain, wet/dry line included
 
 
-@pytest.mark.parametrize("method", _methods("DAMPM L1 1.75, 1.55, 1.52 m^2: orders 0.18, 0.03"))
+@pytest.mark.parametrize("method", METHODS)
 def test_mangeney_coulomb_incline_converges(method):
-    """TG2-PC: 0.471, 0.257, 0.134 m² (orders 0.87, 0.94): first order, as for Ritter."""
+    """TG2-PC 0.471, 0.257, 0.134 m² (orders 0.87, 0.94); DAMPM 0.813, 0.487, 0.253 (0.74, 0.95).
+
+    Front (last node with h > 1e-3) at 200 cells: DAMPM 36.0 m (33.0, 35.0 coarser), exact 38.4.
+    """
     levels, errors, ords = _ladder(ladders.mangeney, (50, 100, 200), method)
     assert errors[0] > errors[1] > errors[2]
-    assert min(ords) > 0.8 and errors[-1] < 0.15
+    bound, order = (0.15, 0.8) if method == "tg2" else (0.3, 0.65)
+    assert min(ords) > order and errors[-1] < bound
     assert abs(levels[-1].extra["front"] - levels[-1].extra["exact_front"]) < 2.5
 
 
-@pytest.mark.parametrize(
-    "method", _methods("DAMPM L1 2.53, 3.70, 4.08 m^2: particle sampling noise in the fan"))
+@pytest.mark.parametrize("method", METHODS)
 def test_ritter_converges_first_order(method):
+    """TG2-PC first order below 0.16 m² at 400 cells; DAMPM 0.816, 0.438, 0.227 (0.90, 0.95)."""
     _, errors, ords = _ladder(ladders.ritter, (100, 200, 400), method)
-    assert min(ords) > 0.9 and errors[-1] < 0.16
+    bound, order = (0.16, 0.9) if method == "tg2" else (0.25, 0.85)
+    assert min(ords) > order and errors[-1] < bound
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -110,16 +118,16 @@ def test_voellmy_sheet_speed(method):
 
 
 @pytest.mark.parametrize(
-    "method", _methods("DAMPM rate errors 0.44, 0.33, 0.33: the explicit stress does not converge"))
+    "method", _methods("DAMPM rate errors 0.52, 0.38, 0.38: transfer damping x steps ~ 1/dx^2"))
 def test_shear_decay_second_order(method):
     """TG2-PC: relative rate error 3.3e-2, 8.0e-3, 1.7e-3 (orders 2.04, 2.27)."""
     _, errors, ords = _ladder(ladders.shear_decay, (10, 20, 40), method)
     assert min(ords) > 1.8 and errors[-1] < 3e-3
 
 
-@pytest.mark.parametrize("method", _methods("DAMPM front errors 0.116, 0.123 at 11 s (dx 2, 1 m)"))
+@pytest.mark.parametrize("method", METHODS)
 def test_inclined_dam_break_front_error_shrinks(method):
-    """Relative front error at 11 s: TG2-PC 0.080 (dx = 2 m), 0.065 (dx = 1 m)."""
+    """Relative front error at 11 s: TG2-PC 0.080, 0.065, DAMPM 0.085, 0.057 (dx = 2, 1 m)."""
     _, errors, _ = _ladder(ladders.dam_break, (225, 450), method)
     assert errors[1] < errors[0] < 0.1
 

@@ -63,7 +63,8 @@ class _Ids:
         self.sent += s.comm.allreduce(s.sent, op=MPI.SUM)
         ids = self._gather(s)
         self.ok &= ids.size == np.unique(ids).size  # nothing duplicated
-        self.ok &= np.array_equal(np.sort(ids), np.sort(self.ids))  # nothing lost (closed box)
+        self.ok &= bool(np.isin(self.ids, ids).all())  # nothing lost (closed box)
+        self.ok &= ids.size == self.ids.size + s.splitter.count  # only splitting adds particles
 
     def output(self, s, info):
         pass
