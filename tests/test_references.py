@@ -64,15 +64,6 @@ def test_shear_decay_rate_formula():
 # --- measured, every implemented method ----------------------------------------------------
 #
 # Bounds per method where they differ (DAMPM numbers from docs/benchmarks.md, with a margin).
-# DAMPM's viscous shear mode does not converge yet: each particle-grid round trip damps the
-# mode a little, and the explicit viscous step makes the number of round trips grow as 1/Δx²
-# (the mark is strict: a fix turns it into an error).
-
-
-def _methods(mpm_failure: str | None = None) -> list:
-    """The implemented methods; DAMPM marked xfail(strict) with what fails, if given."""
-    return [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=mpm_failure))
-            if m == "mpm" and mpm_failure else m for m in METHODS]
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -117,12 +108,13 @@ def test_voellmy_sheet_speed(method):
     assert errors[1] < errors[0] and errors[1] < 1e-2
 
 
-@pytest.mark.parametrize(
-    "method", _methods("DAMPM rate errors 0.52, 0.38, 0.38: transfer damping x steps ~ 1/dx^2"))
-def test_shear_decay_second_order(method):
-    """TG2-PC: relative rate error 3.3e-2, 8.0e-3, 1.7e-3 (orders 2.04, 2.27)."""
+@pytest.mark.parametrize("method", METHODS)
+def test_shear_decay_converges(method):
+    """Relative rate error: TG2-PC 3.3e-2, 8.0e-3, 1.7e-3 (orders 2.04, 2.27); DAMPM 0.45,
+    0.18, 0.080 (orders 1.33, 1.16: the PIC share of the velocity update damps the mode)."""
     _, errors, ords = _ladder(ladders.shear_decay, (10, 20, 40), method)
-    assert min(ords) > 1.8 and errors[-1] < 3e-3
+    bound, order = (3e-3, 1.8) if method == "tg2" else (0.1, 1.0)
+    assert min(ords) > order and errors[-1] < bound
 
 
 @pytest.mark.parametrize("method", METHODS)

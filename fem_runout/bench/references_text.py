@@ -72,12 +72,12 @@ REFERENCES = {
 #: The reading; ``{...}`` fields are filled from the results of the run (serial rows).
 READING = """## Reading
 
-**Which methods.** TG2-PC (`tg2`) and DAMPM (`mpm`, 2 × 2 particles per cell, FLIP 0.9) on the
-same grids, case files and outputs. In short: TG2-PC is the accurate one — it converges on
-every reference, at the expected order. DAMPM is 2–4 times cheaper per level, as good or better
-on a sliding sheet, on symmetry, mass and well-balancing, passes every hard case, but does
-**not converge in L1** on the depth of expanding flows (Ritter, the Coulomb incline, Thacker)
-nor on the viscous decay.
+**Which methods.** TG2-PC (`tg2`) and DAMPM (`mpm`, 2 × 2 particles per cell at the start,
+GIMP domains with splitting, FLIP 0.9) on the same grids, case files and outputs. In short:
+both converge on every reference. TG2-PC is second order where the solution is smooth and
+wet; DAMPM is first order everywhere, but cheaper per level, more accurate than TG2-PC on
+Thacker's bowl and the dam-break fronts, and as good on the sliding sheet, symmetry, mass and
+well-balancing; both pass every hard case.
 
 **Accuracy of TG2-PC.**
 - Smooth, wet problems converge at second order: the viscous shear mode (orders
@@ -102,19 +102,24 @@ nor on the viscous decay.
   "about 13 m diameter", which cannot be reconciled with any 1e-3 m threshold.
 
 **Accuracy of DAMPM.**
-- Where it wins: the Voellmy sheet (a uniform layer; no gradients to sample) is within
-  {mpm_voellmy_last:.3%} of the exact speed at dx = 1 m, better than TG2-PC's time-integration
-  error; the lake at rest holds to 3e-13 (L1) with the full material, beside the paper's
-  DAMPM 1.26e-12; the hemisphere front is the same along x, y and −x and the diagonal within a
-  diagonal cell; particle mass is exact and the grid volume matches it to 1e-13.
-- Where it loses: L1 errors do not decrease under refinement — Ritter orders
-  {mpm_ritter_orders}, Coulomb incline {mpm_mangeney_orders}, Thacker {mpm_thacker_orders},
-  shear-mode decay {mpm_shear_orders}. The particle velocities follow the exact Ritter fan,
-  but at a fixed number of particles per cell the particles thin out where the flow stretches
-  (1.2 m apart on 0.5 m cells at the Ritter tip) and the volume-exact grid depth is noisy there
-  at every grid size; the explicit particle stress misses the viscous decay rate by 30 %.
-  Fronts lag more than TG2-PC's: {mpm_dam_front:.1f} m at 11 s on the finest dam-break grid
-  (TG2-PC {dam_front:.1f} m, exact 395.7 m).
+- Converges at first order: Ritter {mpm_ritter_orders}, Coulomb incline {mpm_mangeney_orders},
+  Thacker {mpm_thacker_orders}, viscous shear mode {mpm_shear_orders} (TG2-PC is second order
+  on the last two; DAMPM's PIC share damps smooth modes by O((kΔx)²) per unit time).
+- Where it wins: Thacker's bowl (the particles carry the moving wet/dry line without a front
+  limiter), the dam-break fronts ({mpm_dam_front:.1f} m at 11 s on the finest grid, TG2-PC
+  {dam_front:.1f} m, exact 395.7 m), the Voellmy sheet ({mpm_voellmy_last:.3%} of the exact
+  speed at dx = 1 m, no time-integration lag); the lake at rest holds to 1e-13 (L1) with the
+  full material, beside the paper's DAMPM 1.26e-12; the hemisphere front is the same along x,
+  y, −x and the diagonal within a diagonal cell; particle mass is exact and the grid volume
+  matches it to 1e-13.
+- What made it converge (docs/dampm.md): with the seed's point particles the Ritter error grew
+  under refinement (2.53, 3.70, 4.08 m²) — the fan stretches the material until its tip is held
+  by a few particles metres apart, and an isolated point particle cannot move its own front.
+  Particle domains (GIMP) that stretch with the flow and split when they exceed the particle
+  spacing, on an alias-free uniform lattice, give the first-order convergence above.
+- Not yet right: on Thacker's bowl after two periods the 1- and 2-rank runs differ beyond
+  round-off at 40×40 (L1 1.26e-3 and 1.60e-3): near-massless particles seeded at the shoreline
+  (V ~ 1e-25 m³) take erratic velocities and split differently; the other levels agree.
 
 **Seed Table 1.** Our relative front errors (exact dry-bed tip as reference) are larger than
 the paper's ({dam_last:.3f} at 11 s on the finest grid against 0.0121) and shrink slowly with the
@@ -130,14 +135,15 @@ h >= 0, volume to 1e-15 (TG2-PC) and 1e-13 (DAMPM, the projection's round-off), 
 the bound. TG2-PC needed two fixes found by these cases: a speed bound in drying nodes from the
 deeper neighbours (Riemann invariant plus bed drop; before, the cliff, pit and rough terrain
 reached 81–5000 m/s) and a time-step limit from the slope acceleration (the thin film used to
-run in one 3 s step). DAMPM's explicit stress makes stiff Bingham expensive (1976 steps
-against TG2-PC's 17).
+run in one 3 s step). DAMPM needed the PIC velocity next to friction-stopped nodes (the pit
+crept at 2e-3 m/s); its explicit stress makes stiff Bingham expensive (many more steps than
+TG2-PC's RKC step, hard-case table).
 
 **Speed.** Wall times are the time loop only, on the 2-core machine; {faster} of {levels}
 levels ran faster on 2 ranks than on 1 (below about 10^4 cells the halo exchanges dominate;
 see `docs/step_cost.md` and `docs/step_cost_dampm.md` for large grids). Error against time:
 on the 1D strips (Ritter, Mangeney; cells and steps double per level) halving TG2-PC's error
 costs 2.5–4 times the wall time; on Thacker's 2D ladder (cells ×4, steps ×2–2.5 per level) the
-error drops 3.4 times for 6–8 times the wall time. DAMPM levels cost 2–4 times less than the
-same TG2-PC level, but buying accuracy with refinement does not work for it yet.
+error drops 3.4 times for 6–8 times the wall time. DAMPM halves its error per level like
+TG2-PC on the strips; compare the plots for the error reached per second of wall time.
 """

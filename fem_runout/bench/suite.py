@@ -67,6 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", nargs="+", help="default: every implemented method")
     parser.add_argument("--no-hard", action="store_true", help="skip the hard-case table")
     parser.add_argument("--timeout", type=float, default=1500.0, help="seconds per worker")
+    parser.add_argument("--render", action="store_true",
+                        help="rewrite the report from the raw results saved next to --out")
     parser.add_argument("--worker", metavar="NAME", help=argparse.SUPPRESS)
     parser.add_argument("--method", help=argparse.SUPPRESS)
 
@@ -132,6 +134,13 @@ def run_driver(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     benches = [b for b in BENCHMARKS if not args.only or b.name in args.only]
+    if args.render:  # the report again, from the raw results of the last run
+        raw = json.loads(args.out.with_suffix(".json").read_text())
+        results = {b: {m: {int(k): v for k, v in r.items()} for m, r in by.items()}
+                   for b, by in raw["results"].items()}
+        benches = [b for b in benches if b.name in results]
+        suite_report.write(benches, results, raw["hard"], args.out, args.figures, raw["total"])
+        return 0
     results: dict[str, dict[str, dict[int, list[dict[str, Any]]]]] = {}
     for bench in benches:
         for method in _methods(args):
@@ -147,6 +156,8 @@ def run_driver(args: argparse.Namespace) -> int:
     hard = {} if args.no_hard else {
         m: _launch(["--worker", "hard", "--method", m], 1, args.timeout) for m in _methods(args)}
     total = time.perf_counter() - start
+    raw = {"results": results, "hard": hard, "total": total}
+    args.out.with_suffix(".json").write_text(json.dumps(raw, indent=1))
     text = suite_report.write(benches, results, hard, args.out, args.figures, total)
     print(f"wrote {args.out} ({len(text)} characters) in {total:.0f} s", flush=True)
     return 0
