@@ -11,34 +11,13 @@ local view ``global[node_index]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization
+from fem_runout.mesh import Discretization, Side
 from mpm.gimp import structured_nodes
 
-__all__ = ["GridSide", "NodalGrid"]
-
-
-@dataclass(frozen=True)
-class GridSide:
-    """A side of the rectangle on the global node array.
-
-    Attributes:
-        name: left, right, bottom or top.
-        kind: ``"open"`` or ``"wall"``.
-        normal: Outward unit normal.
-        nodes: Structured node indices on the side.
-        weight: ``∫_side φ_i ds`` for those nodes.
-    """
-
-    name: str
-    kind: str
-    normal: np.ndarray
-    nodes: np.ndarray
-    weight: np.ndarray
+__all__ = ["NodalGrid"]
 
 
 class NodalGrid:
@@ -59,7 +38,8 @@ class NodalGrid:
         self._n_owned = disc.n_owned_nodes
         self.sides = [self._side(s.name, s.kind, s.normal) for s in disc.sides]
 
-    def _side(self, name: str, kind: str, normal: np.ndarray) -> GridSide:
+    def _side(self, name: str, kind: str, normal: np.ndarray) -> Side:
+        """Return a side with structured node indices and its ``∫ φ_i ds`` weights."""
         nx, ny = self.cells
         dx, dy = self.spacing
         if name in ("left", "right"):
@@ -70,7 +50,7 @@ class NodalGrid:
             nodes, step, n = row * (nx + 1) + np.arange(nx + 1), dx, nx
         weight = np.full(n + 1, step)
         weight[[0, -1]] = 0.5 * step
-        return GridSide(name, kind, np.asarray(normal, float), nodes, weight)
+        return Side(name, kind, np.asarray(normal, float), nodes, weight)
 
     def sum(self, local: np.ndarray) -> np.ndarray:
         """Sum per-rank contributions on the global array over the ranks (collective)."""
