@@ -28,13 +28,15 @@ __all__ = ["Basis", "ParticleGrid", "bilinear_basis"]
 
 @dataclass
 class Basis:
-    """Q1 basis at a set of particles.
+    """Weights of the nodes a set of particles touches.
 
     Attributes:
-        cells: (n,) local cell of each particle.
-        nodes: (n, 4) local dofs of that cell, basix order.
-        N: (n, 4) values ``N_i(x_p)``.
-        dN: (n, 4, 2) physical gradients ``∇N_i(x_p)``.
+        cells: (n,) cell of each particle (local DOLFINx cell for :meth:`ParticleGrid.basis`,
+            structured index for the GIMP weights of :mod:`mpm.gimp`).
+        nodes: (n, k) node indices: the cell's 4 local dofs in basix order
+            (:meth:`ParticleGrid.basis`) or 9 structured nodes (:func:`mpm.gimp.gimp_weights`).
+        N: (n, k) weights (``N_i(x_p)`` for point particles).
+        dN: (n, k, 2) physical weight gradients.
     """
 
     cells: np.ndarray

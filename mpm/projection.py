@@ -1,9 +1,10 @@
 """Particle → Q1 projection of the depth and momenta for outputs and diagnostics.
 
 The particles carry the state; the grid fields ``h, hu, hv`` that every output reads are
-projections of the particle volume density ``Σ_p V_p δ(x - x_p)`` (and of ``V_p v_p``):
+projections of the particle volume spread over the particle domains (GIMP weights ``S_ip`` of
+:mod:`mpm.gimp`; ``S_ip = N_i(x_p)`` for a domain inside one cell):
 
-* low order (lumped): ``h^L_i = b_i / M_i`` with ``b_i = Σ_p V_p N_i(x_p)`` and the lumped Q1
+* low order (lumped): ``h^L_i = b_i / M_i`` with ``b_i = Σ_p V_p S_ip`` and the lumped Q1
   mass ``M_i = ∫ φ_i`` — non-negative, but smeared by one cell;
 * high order (consistent L2): ``M_C h^H = b`` — exact for a nodal field sampled by particles
   at Gauss points (lake at rest to round-off), but it can undershoot at fronts.
@@ -13,7 +14,7 @@ with the element antidiffusion ``f_K = (M_L^K - M_C^K) h^H`` (``Σ_i f_{K,i} = 0
 ``α_K`` conserves ``Σ_i M_i h_i = Σ_p V_p`` exactly) and ``α_K = 1`` except in the cells
 touching a node that would get a negative depth, where ``α_K = 0`` (repeated until no node is
 negative). Further columns (if any) use the same ``α_K``. The solver projects ``h`` this way
-and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ m_p v_p N_i / M_i``
+and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ m_p v_p S_ip / M_i``
 (bounded by the particle velocities, so the output speed never exceeds the particles').
 
 On the structured grid the consistent mass matrix is a tensor product, ``M_C = M_y ⊗ M_x``

@@ -76,7 +76,7 @@ class MPMSolver:
         self.disc, self.grid, self.particles = disc, grid, particles
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
-        self.friction, self.rheology, self.still_depth = friction, rheology, still_depth
+        self.friction, self.rheology = friction, rheology
         self.flip = float(flip)
         self.z = np.asarray(z, dtype=float)
         self.fields = {k: fem.Function(disc.V, name=k) for k in ("h", "hu", "hv", "z")}
@@ -135,7 +135,7 @@ class MPMSolver:
             du, dv, _ = g2p(b.nodes, b.N, b.dN, vx - self._nodal[:, 1] / safe,
                             vy - self._nodal[:, 2] / safe)
             stopped = ((mass > 0.0) & (vx == 0.0) & (vy == 0.0)).astype(float)
-            near, _, _ = g2p(b.nodes, b.N, b.dN, stopped, stopped)
+            near = interpolate(b.nodes, b.N, stopped)
             pic = (1.0 - self.flip) * self._pic_scale
             flip = np.where(near > 0.0, 0.0, 1.0 - pic)  # PIC next to nodes friction stopped
             u = flip * (p.u + du) + (1.0 - flip) * u
