@@ -54,6 +54,9 @@ class DomainSplitter:
     def split(self, p: Particles) -> Particles:
         """Split along x, then y, until every half-width is within the limit (collective)."""
         comm = self.grid.comm
+        wide = bool((p.lx > self.limit[0]).any() or (p.ly > self.limit[1]).any())
+        if not comm.allreduce(wide, op=MPI.LOR):  # the usual step: one small message
+            return p
         while True:
             n_before = self.count
             p = self._split_axis(p, "lx", self.limit[0])
