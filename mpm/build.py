@@ -10,7 +10,7 @@ from fem_runout.mesh import build_discretization
 from fem_runout.parallel import agree_on_errors
 from fem_runout.physics.friction import friction_from_spec
 from fem_runout.physics.rheology import rheology_from_spec
-from fem_runout.tg2.solver import initial_fields
+from fem_runout.tg2.solver import initial_fields, resolved_thin_depth
 from mpm.grid import ParticleGrid
 from mpm.migrate import migrate
 from mpm.particles import seed_particles
@@ -50,11 +50,13 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     still = still_water_depth(case, comm, disc.coords, init["h"])
     # Gauss points make the lake at rest exact; elsewhere the alias-free uniform lattice
     layout = "uniform" if still is None else "gauss"
-    particles = seed_particles(grid, init["h"], u, v, case.numerics.particles_per_direction,
-                               layout)
-    particles, _ = migrate(grid, particles)
     num = case.numerics
+    particles = seed_particles(grid, init["h"], u, v, num.particles_per_direction, layout,
+                               num.dry_tolerance)
+    particles, _ = migrate(grid, particles)
     friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
     rheology = rheology_from_spec(case.material.rheology, case.material.density)
-    return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
-                     friction, rheology, still, num.flip, num.particles_per_direction)
+    solver = MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
+                       friction, rheology, still, num.flip, num.particles_per_direction)
+    solver.splitter.thin_depth = resolved_thin_depth(case, comm, init["h"])
+    return solver

@@ -110,8 +110,9 @@ def seed_particles(
     v_nodes: np.ndarray,
     per_direction: int,
     layout: str = "uniform",
+    min_depth: float = 0.0,
 ) -> Particles:
-    """Seed ``per_direction²`` particles in every owned cell where the initial depth is positive.
+    """Seed up to ``per_direction²`` particles in every owned cell with depth above ``min_depth``.
 
     ``uniform``: particles at the centres of the ``n × n`` sub-cells, areas ``|K|/n²`` and
     domains equal to the sub-cells (they tile the material; the lattice is alias-free on the
@@ -122,7 +123,12 @@ def seed_particles(
     exactly (the lake at rest, :mod:`mpm.projection`); domain half-widths ``Δ/(2 n)`` cut to
     the distance to the cell's edge, so the GIMP weights start as the point values.
     Depth and velocity are the Q1 interpolants of the nodal initial fields, so
-    ``V_p = A_p h_h(x_p)`` (for ``uniform`` the exact volume of the sub-cell).
+    ``V_p = A_p h_h(x_p)`` (for ``uniform`` the exact volume of the sub-cell). Points where
+    ``h_h(x_p) <= min_depth`` (the dry tolerance) get no particle: a near-massless particle
+    at a shoreline carries no information, but its velocity (a FLIP update from nodes with no
+    mass) is erratic and it would set the time step. The volume not seeded is at most
+    ``min_depth`` times the dry part of the cells' area; the released volume that runs report
+    is the particles' (their projection conserves it exactly).
 
     Args:
         grid: The particle grid.
@@ -131,6 +137,7 @@ def seed_particles(
         v_nodes: Nodal initial y-velocity.
         per_direction: Particles per cell per direction.
         layout: ``"uniform"`` (sub-cell centres) or ``"gauss"`` (Gauss points).
+        min_depth: No particle where the interpolated depth is at most this [m].
 
     Returns:
         The particles of this rank (cells without depth get none).
@@ -152,7 +159,7 @@ def seed_particles(
     pid = (index[:, None] * n_loc + np.arange(n_loc)[None, :]).ravel()
     basis = grid.basis(cell, xi, eta)
     h = interpolate(basis.nodes, basis.N, h_nodes)
-    keep = h > 0.0
+    keep = h > min_depth
     u = interpolate(basis.nodes, basis.N, u_nodes)[keep]
     v = interpolate(basis.nodes, basis.N, v_nodes)[keep]
     zero = np.zeros(int(keep.sum()))

@@ -226,12 +226,13 @@ class MPMSolver:
     def _update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
         """Depth (eq. 42) and stress (eqs. 40-41) from the grid velocity gradient."""
         p = self.particles
-        rate = dt * (grad[:, 0, 0] + grad[:, 1, 1])
-        factor = 1.0 + rate
-        # eq. 42; a column squeezed past zero in one step (seen only for near-massless particles
-        # at a shoreline, V ~ 1e-25 m³) takes the exact exponential of the same rate instead
-        p.h = np.where(factor > 0.0, p.h / np.where(factor > 0.0, factor, 1.0),
-                       p.h * np.exp(-np.minimum(rate, 700.0)))
+        factor = 1.0 + dt * (grad[:, 0, 0] + grad[:, 1, 1])
+        if not (factor > 0.0).all():  # squeezed past zero in one step: stop, state kept
+            worst = int(np.argmin(factor))
+            self._problem = (f"a particle column collapsed (1 + dt div v = {factor[worst]:.3g} "
+                             f"<= 0, seed eq. 42) at particle {int(p.id[worst])}")
+            return
+        p.h = p.h / factor  # eq. 42
         if self.rheology is None:
             return
         mu = self.rheology.effective_viscosity(p.h, p.u, p.v, grad)

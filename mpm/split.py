@@ -14,6 +14,19 @@ half-widths ``l_x/2`` and half the volume each; depth, velocity and stress are t
 Mass, momentum and the volume-weighted depth are unchanged (halving is exact in floating
 point), and so is the grid mass (the two halves cover the parent's domain exactly).
 
+Two bounds keep the particle count proportional to the flow's footprint (without them it grew
+from 3.5e3 to 1.7e6 in the first 80 s of the avaKot avalanche, docs/dampm.md):
+
+* **Aspect ratio.** Axis-aligned domains cannot rotate: a flow that stretches along x and
+  converges along y, then turns, leaves needles (``l_x/l_y`` up to 4e3 in avaKot) whose long
+  axis splits again and again while their short axis never grows back. The stretch keeps the
+  domain's area ``4 l_x l_y`` exactly but bounds its aspect ratio, in cell units,
+  to :data:`MAX_ASPECT`; 1-D stretching (a dam-break fan, ratio at most 2) never meets it.
+* **Thin particles.** A particle thinner than ``numerics.thin_depth`` (the depth below which
+  the flow is not resolved, also TG2-PC's desingularisation depth) is not split; its domain
+  stops growing at the split limit. Thin tails otherwise thin without bound (``h_p`` to 1e-11 m
+  in avaKot's late run-out) and cover ever larger areas with ever more particles.
+
 The first child keeps the parent's id; the second gets a new id, assigned in the order of the
 parents' ids over all ranks, so ids do not depend on the rank count.
 """
@@ -26,7 +39,10 @@ from mpi4py import MPI
 from mpm.grid import ParticleGrid
 from mpm.particles import Particles
 
-__all__ = ["DomainSplitter"]
+__all__ = ["MAX_ASPECT", "DomainSplitter"]
+
+#: Largest aspect ratio ``l_x/l_y`` (or ``l_y/l_x``) of a particle domain.
+MAX_ASPECT = 4.0
 
 
 class DomainSplitter:
@@ -36,20 +52,35 @@ class DomainSplitter:
         grid: The particle grid.
         per_direction: Particles per cell and direction at the start.
         next_id: First unused particle id (the same on every rank).
+        thin_depth: Particles thinner than this [m] are not split (their domain is capped).
     """
 
-    def __init__(self, grid: ParticleGrid, per_direction: int, next_id: int) -> None:
+    def __init__(self, grid: ParticleGrid, per_direction: int, next_id: int,
+                 thin_depth: float = 0.0) -> None:
         self.grid = grid
         self.limit = (min(grid.dx / per_direction, 0.5 * grid.dx),
                       min(grid.dy / per_direction, 0.5 * grid.dy))
         self.next_id = int(next_id)
         self.count = 0
+        self.max_aspect = MAX_ASPECT
+        self.thin_depth = float(thin_depth)
 
-    @staticmethod
-    def stretch(p: Particles, dt: float, grad: np.ndarray) -> None:
-        """Half-widths times ``1 + Δt ∂v_a/∂x_a`` (in place; kept positive)."""
-        p.lx = p.lx * np.maximum(1.0 + dt * grad[:, 0, 0], 1e-3)
-        p.ly = p.ly * np.maximum(1.0 + dt * grad[:, 1, 1], 1e-3)
+    def stretch(self, p: Particles, dt: float, grad: np.ndarray) -> None:
+        """Half-widths times ``1 + Δt ∂v_a/∂x_a``, aspect ratio bounded (in place).
+
+        The product ``l_x l_y`` (the domain's area) follows the stretch exactly; the shape
+        only up to ``l_x/l_y`` in ``[1/r, r]``, ``r`` = :data:`MAX_ASPECT`: beyond it the
+        domain is made less elongated at the same area (see the module docstring).
+        """
+        lx = p.lx * np.maximum(1.0 + dt * grad[:, 0, 0], 1e-3)
+        ly = p.ly * np.maximum(1.0 + dt * grad[:, 1, 1], 1e-3)
+        cell = self.grid.dx / self.grid.dy  # the ratio is measured in cell units
+        ratio = np.clip(lx / (ly * cell), 1.0 / self.max_aspect, self.max_aspect) * cell
+        area = lx * ly
+        p.lx, p.ly = np.sqrt(area * ratio), np.sqrt(area / ratio)
+        thin = p.h < self.thin_depth
+        p.lx[thin] = np.minimum(p.lx[thin], self.limit[0])
+        p.ly[thin] = np.minimum(p.ly[thin], self.limit[1])
 
     def split(self, p: Particles) -> Particles:
         """Split along x, then y, until every half-width is within the limit (collective)."""

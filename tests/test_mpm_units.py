@@ -72,6 +72,12 @@ def test_seeded_volume_equals_the_lumped_nodal_volume(grid):
         volume = float(np.sum(grid.disc.lumped_mass * h))
         assert abs(p.volume.sum() / volume - 1.0) < 1e-14, n
         assert np.unique(p.id).size == len(p) and p.h.min() > 0.0
+        tol = 0.05  # no particle at or below the dry tolerance; the volume left out is below it
+        q = seed_particles(grid, h, 0 * h, 0 * h, n, min_depth=tol)
+        assert q.h.min() > tol and len(q) < len(p)
+        dropped = ~np.isin(p.id, q.id)
+        assert p.h[dropped].max() <= tol and np.array_equal(p.h[~dropped], q.h)
+        assert 0.0 < volume - q.volume.sum() <= tol * p.area[dropped].sum() * (1 + 1e-14)
 
 
 def test_pack_unpack_round_trip(grid):
@@ -182,3 +188,23 @@ def test_split_halves_the_stretched_particles_and_keeps_everything_else(grid):
         assert abs(np.average(y[kids], weights=q.volume[kids]) - y0[k]) < 1e-12
         area = (4 * q.lx[kids] * q.ly[kids]).sum()
         assert abs(area - 4 * p.lx[k] * p.ly[k]) < 1e-12
+
+
+def test_stretch_keeps_the_area_bounds_the_aspect_and_caps_thin_particles(grid):
+    one = np.ones(grid.disc.coords.shape[0])
+    p = seed_particles(grid, one, 0 * one, 0 * one, 2)
+    n = len(p)
+    splitter = DomainSplitter(grid, 2, int(p.id.max()) + 1, thin_depth=0.01)
+    p.h[: n // 2] = 1e-3  # thin: never wider than the split limit
+    lx0, ly0 = p.lx.copy(), p.ly.copy()
+    grad = np.zeros((n, 2, 2))
+    grad[:, 0, 0], grad[:, 1, 1] = 19.0, -0.9  # x stretched 20x, y squeezed 10x in 1 s
+    splitter.stretch(p, 1.0, grad)
+    thick = slice(n // 2, None)
+    aspect = (p.lx / grid.dx) / (p.ly / grid.dy)  # in cell units
+    assert np.abs(aspect[thick] - splitter.max_aspect).max() < 1e-12  # 200 bounded to 4
+    assert np.abs(p.lx * p.ly - 2 * lx0 * ly0)[thick].max() < 1e-12 * (lx0 * ly0).max()
+    assert (p.lx[: n // 2] <= splitter.limit[0]).all()
+    assert (p.ly[: n // 2] <= splitter.limit[1]).all()
+    q = splitter.split(p)
+    assert len(q) == n + (n - n // 2)  # only the thick ones split (once, along x)

@@ -141,6 +141,22 @@ def _orders_text(results: dict, name: str, key: str | None = None, method: str =
     return ", ".join(f"{o:.2f}" for o in orders(errs)[1:] if o is not None) or "–"
 
 
+def rank_spread(results: dict, method: str) -> tuple[float, str]:
+    """Largest relative difference of the error between 1 and 2 ranks over the ordered ladders."""
+    from fem_runout.bench.suite import BENCHMARKS
+
+    worst, where = 0.0, "–"
+    for bench in BENCHMARKS:
+        by_ranks = results.get(bench.name, {}).get(method, {})
+        if not bench.claims_order:
+            continue
+        for r1, r2 in zip(by_ranks.get(1, []), by_ranks.get(2, []), strict=False):
+            diff = abs(r2["error"] - r1["error"]) / abs(r1["error"]) if r1["error"] else 0.0
+            if diff >= worst:
+                worst, where = diff, f"{bench.name} at {r1['level']}"
+    return worst, where
+
+
 def reading(results: dict) -> str:
     """Fill :data:`READING` with this run's numbers (``–`` where a ladder is missing)."""
     def last(name: str, key: str | None = None, method: str = "tg2") -> float:
@@ -170,7 +186,9 @@ def reading(results: dict) -> str:
         mpm_mangeney_orders=_orders_text(results, "mangeney", method="mpm"),
         mpm_thacker_orders=_orders_text(results, "thacker", method="mpm"),
         mpm_shear_orders=_orders_text(results, "shear_decay", method="mpm"),
-        mpm_dam_front=last("dam_break", "front_11", method="mpm"))
+        mpm_dam_front=last("dam_break", "front_11", method="mpm"),
+        mpm_rank_spread="{:.1e} ({})".format(*rank_spread(results, "mpm")),
+        tg2_rank_spread="{:.1e} ({})".format(*rank_spread(results, "tg2")))
 
 
 def write(benches: list[Benchmark], results: dict, hard: dict[str, Rows], out: Path,

@@ -166,6 +166,13 @@ def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:
     return {"z": z, "h": h, "hu": h * u_fn(x, y), "hv": h * v_fn(x, y)}
 
 
+def resolved_thin_depth(case: Case, comm: MPI.Comm, h: np.ndarray) -> float:
+    """``numerics.thin_depth``, or 1e-6 × the largest initial depth when unset (collective)."""
+    if case.numerics.thin_depth is not None:
+        return float(case.numerics.thin_depth)
+    return 1e-6 * comm.allreduce(float(h.max()) if h.size else 0.0, op=MPI.MAX)
+
+
 def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     """Create the TG2-PC solver of a case (collective)."""
     disc = build_discretization(
@@ -173,9 +180,7 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     )
     init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     num = case.numerics
-    thin = num.thin_depth
-    if thin is None:
-        thin = 1e-6 * comm.allreduce(float(init["h"].max()) if init["h"].size else 0.0, op=MPI.MAX)
+    thin = resolved_thin_depth(case, comm, init["h"])
     transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct)
     for name in ("z", "h", "hu", "hv"):
         getattr(transport, name).x.array[:] = init[name]
