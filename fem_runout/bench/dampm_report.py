@@ -45,7 +45,8 @@ def dam_break_section(levels: int) -> list[str]:
              "Front = largest x with grid h > 1e-3 m; [0, 450] × [0, 20] m, open ends, walls "
              "along the flow, frictionless. DAMPM with 2 particles per cell and direction "
              "(FLIP 0.9) unless stated; `PIC` is the seed's eq. 38 (flip 0); `ppd 3` puts "
-             "3 × 3 particles per cell (the paper's ~7e3 particles).", "",
+             "3 × 3 particles per cell (the paper's ~7e3 particles); `particles` is the count at "
+             "11 s, after splitting (docs/dampm.md).", "",
              "| run | particles | steps | wall [s] | 2.75 s | 5.5 s | 8.25 s | 11 s |",
              "|---|---:|---:|---:|---:|---:|---:|---:|"]
     for k in range(levels):

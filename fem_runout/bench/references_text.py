@@ -121,7 +121,14 @@ well-balancing; both pass every hard case.
   over the ladders above is {mpm_rank_spread} for DAMPM, {tg2_rank_spread} for TG2-PC. Before
   points below the dry tolerance stopped getting particles, near-massless shoreline particles
   (V ~ 1e-20 m³, erratic FLIP velocities) set DAMPM's time step on Thacker's bowl and the two
-  periods differed by 27 % at 40×40 (L1 1.26e-3 against 1.60e-3).
+  periods differed by 27 % at 40×40 (L1 1.26e-3 against 1.60e-3). TG2-PC's spread is not a
+  bug of the parallel code but round-off amplified by its momentum limiter: on the Voellmy
+  sheet (200 cells, 1 rank) a 1e-15 relative perturbation of the initial depth grows to 2e-2
+  m in h within 4 s, travelling with the head of the rarefaction from the upstream wall; with
+  `numerics.fct: false` it stays at 1e-14, with only the mass limited at 1e-10. The Zalesak
+  factors of the momenta switch by O(1) there (a min over nodes of ratios of small sums), so
+  the 1- and 2-rank runs, whose sums differ in the last bit, end up apart by about the size of
+  the error itself on the Voellmy sheet and the Coulomb incline. Not fixed (issue noted).
 
 **Seed Table 1.** Our relative front errors (exact dry-bed tip as reference) are larger than
 the paper's ({dam_last:.3f} at 11 s on the finest grid against 0.0121) and shrink slowly with the
