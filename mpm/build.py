@@ -56,7 +56,6 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     particles, _ = migrate(grid, particles)
     friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
     rheology = rheology_from_spec(case.material.rheology, case.material.density)
-    solver = MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
-                       friction, rheology, still, num.flip, num.particles_per_direction)
-    solver.splitter.thin_depth = resolved_thin_depth(case, comm, init["h"])
-    return solver
+    return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
+                     friction, rheology, still, num.flip, num.particles_per_direction,
+                     resolved_thin_depth(case, comm, init["h"]))

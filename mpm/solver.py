@@ -66,13 +66,14 @@ class MPMSolver:
         still_depth: Nodal still-water depth ``H`` (well-balanced eq. 46) or None.
         flip: FLIP fraction of the particle velocity update (0: PIC, eq. 38 of the seed).
         per_direction: Particles per cell and direction at the start (the split limit).
+        thin_depth: Particles thinner than this are not split [m] (:mod:`mpm.split`).
     """
 
     def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
                  z: np.ndarray, density: float, gravity: float,
                  friction: FrictionLaw | None = None, rheology: Bingham | None = None,
                  still_depth: np.ndarray | None = None, flip: float = 0.0,
-                 per_direction: int = 2) -> None:
+                 per_direction: int = 2, thin_depth: float = 0.0) -> None:
         self.disc, self.grid, self.particles = disc, grid, particles
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
@@ -87,7 +88,7 @@ class MPMSolver:
         self.projector = GridProjector(disc.cells, disc.spacing)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
-        self.splitter = DomainSplitter(grid, per_direction, n_ids)
+        self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
         self.outflow_volume = 0.0
         self.sent = 0
         self._problem: str | None = None

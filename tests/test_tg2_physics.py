@@ -6,6 +6,7 @@ from mpi4py import MPI
 
 from fem_runout.api import build_solver, run
 from fem_runout.config import load_case
+from fem_runout.references import shear_decay
 from fem_runout.runner import Runner, Schedule
 from tests.tg2_helpers import case, lake_errors
 
@@ -70,15 +71,16 @@ def _probe(c):
     return np.array(probe.t), np.array([u for u, _ in probe.u]), np.array([m for _, m in probe.u])
 
 
-def test_voellmy_sheet_reaches_the_tanh_law():
+@pytest.mark.parametrize("method", ["tg2", "mpm"])
+def test_voellmy_sheet_reaches_the_tanh_law(method):
     slope, mu, xi, h = 0.3, 0.1, 500.0, 1.0
     a, b = G * (slope - mu), G / (xi * h)
     t_end = 3.0 / np.sqrt(a * b)
-    c = _sheet(slope, {"law": "voellmy", "mu": mu, "xi": xi}, end=t_end)
+    c = _sheet(slope, {"law": "voellmy", "mu": mu, "xi": xi}, end=t_end, method=method)
     t, u, _ = _probe(c)
     exact = np.sqrt(a / b) * np.tanh(np.sqrt(a * b) * t_end)
-    print(f"Voellmy sheet at 3 relaxation times: u = {u[-1]:.4f}, exact {exact:.4f}, "
-          f"rel. error {abs(u[-1] / exact - 1):.2e}, steps {len(t) - 1}")
+    print(f"{method} Voellmy sheet at 3 relaxation times: u = {u[-1]:.4f}, exact "
+          f"{exact:.4f}, rel. error {abs(u[-1] / exact - 1):.2e}, steps {len(t) - 1}")
     assert abs(u[-1] / exact - 1.0) < 5e-3
 
 
@@ -99,32 +101,17 @@ def test_coulomb_stop_time_and_no_creep():
     assert np.abs(umax[k:]).max() <= 1e-12  # every interior node stays at rest
 
 
-def test_layer_below_yield_never_moves():
-    c = _sheet(0.1, {"law": "coulomb", "phi_deg": 26.0}, end=3.0)
+@pytest.mark.parametrize("method", ["tg2", "mpm"])
+def test_layer_below_yield_never_moves(method):
+    c = _sheet(0.1, {"law": "coulomb", "phi_deg": 26.0}, end=3.0, method=method)
     t, u, umax = _probe(c)
-    print("max interior speed of a held layer:", umax.max())
+    print(f"{method} max interior speed of a held layer:", umax.max())
     assert umax.max() <= 1e-12
 
 
 def _shear(mu, tau, ny, end=1.0):
-    """u = U cos(k y), v = 0 between slip walls at y = 0, L (where ∂y u = 0).
-
-    The x-sides carry no traction (as in the paper), which the exact shear flow does not
-    satisfy (and nothing flows in through them); what they disturb travels at about
-    sqrt(g h) ≈ 3 m/s, so the decay is measured on 10 <= x <= 30 m of a 40 m wide strip.
-    """
-    L = 10.0
-    return load_case({
-        "name": "shear", "gravity": G,
-        "domain": {"extent": [0, 40, 0, L], "cells": [20, ny],
-                   "boundary": {"left": "open", "right": "open", "bottom": "wall",
-                                "top": "wall"}},
-        "terrain": {"elevation": "0"},
-        "initial": {"depth": "1", "velocity": [f"0.1*cos(2*pi*y/{L})", "0"]},
-        "material": {"density": 1000, "rheology": {"law": "bingham", "viscosity": mu,
-                                                   "yield_stress": tau}},
-        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
-    })
+    """The shear-decay reference case (fem_runout.references.shear_decay)."""
+    return load_case(shear_decay.case_dict(ny, mu, tau, end, G))
 
 
 def _decay_rate(c, end=1.0):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BeforeValidator, Field, model_validator
 
 from fem_runout.config.geo import parse_window
-from fem_runout.config.types import Real, SpecError
+from fem_runout.config.types import Real, SpecError, StrictSpec
 
 __all__ = ["SIDES", "BoundaryKind", "BoundarySides", "DomainSpec"]
 
@@ -15,15 +15,11 @@ __all__ = ["SIDES", "BoundaryKind", "BoundarySides", "DomainSpec"]
 Box = tuple[float, float, float, float]
 
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
 SIDES: tuple[str, ...] = ("left", "right", "bottom", "top")
 BoundaryKind = Literal["open", "wall"]
 
 
-class BoundarySides(_Spec):
+class BoundarySides(StrictSpec):
     """Boundary kind of each side of the rectangle: ``open`` (outflow) or ``wall`` (slip)."""
 
     left: BoundaryKind = "open"
@@ -53,7 +49,7 @@ def _cells(value: Any) -> Any:
     return tuple(value)
 
 
-class DomainSpec(_Spec):
+class DomainSpec(StrictSpec):
     """The rectangle, its structured mesh and its boundary conditions.
 
     With ``terrain.dem`` the extent defaults to the DEM's (``window`` picks a part of it) and

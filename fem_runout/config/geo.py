@@ -11,10 +11,10 @@ import os
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BeforeValidator, Field, model_validator
 
 from fem_runout.config.expr import Expression, compile_expression
-from fem_runout.config.types import Bool, Expr, Real, SpecError, is_number
+from fem_runout.config.types import Bool, Expr, Real, SpecError, StrictSpec, is_number
 
 __all__ = [
     "DATA_ENV",
@@ -25,10 +25,6 @@ __all__ = [
     "parse_release",
     "parse_window",
 ]
-
-
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def _path(value: Any) -> Any:
@@ -42,7 +38,7 @@ def _path(value: Any) -> Any:
 FilePath = Annotated[str, BeforeValidator(_path)]
 
 
-class TerrainSpec(_Spec):
+class TerrainSpec(StrictSpec):
     """Terrain elevation ``z(x, y)`` [m]: an expression, or a DEM raster.
 
     Attributes:
@@ -75,7 +71,7 @@ class TerrainSpec(_Spec):
         return compile_expression(self.elevation, "terrain.elevation")
 
 
-class ReleaseArea(_Spec):
+class ReleaseArea(StrictSpec):
     """One release area: polygons with a thickness, or a thickness raster.
 
     Attributes:

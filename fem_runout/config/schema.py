@@ -13,13 +13,13 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BeforeValidator, Field, PrivateAttr, model_validator
 
 from fem_runout.config.domain import BoundarySides, DomainSpec
 from fem_runout.config.expr import Expression, compile_expression
 from fem_runout.config.geo import ReleaseArea, TerrainSpec, expand_data_path, parse_release
 from fem_runout.config.timing import TimeSpec
-from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, is_number
+from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, StrictSpec, is_number
 
 __all__ = [
     "BoundarySides",
@@ -37,9 +37,6 @@ __all__ = [
     "TimeSpec",
 ]
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
 
 def _velocity(value: Any) -> Any:
     if not isinstance(value, list | tuple) or len(value) != 2:
@@ -47,7 +44,7 @@ def _velocity(value: Any) -> Any:
     return tuple(value)
 
 
-class InitialSpec(_Spec):
+class InitialSpec(StrictSpec):
     """Initial state: depth ``h``, free surface ``h + z`` or release areas [m]; velocity [m/s]."""
 
     depth: Expr | None = None
@@ -81,7 +78,7 @@ class InitialSpec(_Spec):
         )
 
 
-class FrictionSpec(_Spec):
+class FrictionSpec(StrictSpec):
     """Basal friction law (validated here, implemented by the physics modules).
 
     Attributes:
@@ -131,7 +128,7 @@ class FrictionSpec(_Spec):
         return None
 
 
-class RheologySpec(_Spec):
+class RheologySpec(StrictSpec):
     """Internal rheology (validated here, implemented by the physics modules).
 
     Attributes:
@@ -155,7 +152,7 @@ class RheologySpec(_Spec):
         return self
 
 
-class MaterialSpec(_Spec):
+class MaterialSpec(StrictSpec):
     """Material density [kg/m^3], friction and rheology."""
 
     density: Real = Field(1000.0, gt=0)
@@ -163,7 +160,7 @@ class MaterialSpec(_Spec):
     rheology: RheologySpec = RheologySpec()
 
 
-class OutputSpec(_Spec):
+class OutputSpec(StrictSpec):
     """Where and how often to write results.
 
     ``dir`` and ``every`` are filled by :class:`Case` (``results/<name>``, ``end/10``).
@@ -178,7 +175,7 @@ class OutputSpec(_Spec):
     ascii: Bool = False  # hazard maps also as ESRI ASCII grids
 
 
-class NumericsSpec(_Spec):
+class NumericsSpec(StrictSpec):
     """Wet/dry threshold [m], thin-layer depth [m], FCT switch (TG2) and particles (DAMPM).
 
     ``thin_depth`` is the depth under which velocities are desingularised,
@@ -219,7 +216,7 @@ def _fill_output(data: dict[str, Any]) -> dict[str, Any]:
     return {**data, "output": output}
 
 
-class Case(_Spec):
+class Case(StrictSpec):
     """A validated run-out case.
 
     Attributes:

@@ -4,15 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BeforeValidator, Field, model_validator
 
-from fem_runout.config.types import Int, Real, SpecError
+from fem_runout.config.types import Int, Real, SpecError, StrictSpec
 
 __all__ = ["TimeSpec"]
-
-
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 def _end(value: Any) -> Any:
@@ -23,7 +19,7 @@ def _end(value: Any) -> Any:
     return value
 
 
-class TimeSpec(_Spec):
+class TimeSpec(StrictSpec):
     """End time [s], CFL number, optional step limits and the rest criterion of ``end: auto``.
 
     With ``end: auto`` the run stops when the largest speed (over nodes deeper than

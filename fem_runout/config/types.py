@@ -9,11 +9,17 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any
 
-from pydantic import BeforeValidator
+from pydantic import BaseModel, BeforeValidator, ConfigDict
 
 from fem_runout.config.expr import ExpressionError, check_expression
 
-__all__ = ["Bool", "Expr", "Int", "Real", "SpecError", "is_number"]
+__all__ = ["Bool", "Expr", "Int", "Real", "SpecError", "StrictSpec", "is_number"]
+
+
+class StrictSpec(BaseModel):
+    """Base of every section of the case: unknown keys are refused, instances are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 class SpecError(ValueError):

@@ -5,7 +5,7 @@ from mpi4py import MPI
 
 from fem_runout.api import build_solver, run
 from fem_runout.runner import Runner, Schedule
-from tests.tg2_helpers import case, lake_errors
+from tests.tg2_helpers import assert_same_on_ranks, case, lake_errors
 
 WORLD = MPI.COMM_WORLD
 FULL = ("material.friction={law: voellmy, phi_deg: 26, xi: 500}",
@@ -22,17 +22,7 @@ def test_lake_at_rest_with_full_rheology_in_parallel():
 
 
 def _compare(c, tol=1e-10):
-    par = run(c, write=False, comm=WORLD)
-    ser = run(c, write=False, comm=MPI.COMM_SELF) if WORLD.rank == 0 else None
-    if WORLD.rank == 0:
-        assert par.steps == ser.steps and par.particles == ser.particles
-        for key in ("h", "hu", "hv", "peak_depth", "peak_speed"):
-            a, b = getattr(par, key), getattr(ser, key)
-            diff = np.abs(a - b).max()
-            print(f"DAMPM {key}: max |parallel - serial| = {diff:.2e}")
-            assert diff <= tol * max(1.0, np.abs(b).max()), key
-        assert abs(par.series["volume"][-1] - ser.series["volume"][-1]) <= 1e-12 * max(
-            1.0, ser.series["volume"][0])
+    assert_same_on_ranks(c, WORLD, tol)
 
 
 def test_same_result_on_one_and_two_ranks_open_slope():

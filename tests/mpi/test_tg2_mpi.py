@@ -1,10 +1,9 @@
 """TG2-PC under MPI: well-balancing on 2 ranks and results independent of the rank count."""
 
-import numpy as np
 from mpi4py import MPI
 
 from fem_runout.api import run
-from tests.tg2_helpers import case, lake_errors
+from tests.tg2_helpers import assert_same_on_ranks, case, lake_errors
 
 WORLD = MPI.COMM_WORLD
 
@@ -19,18 +18,7 @@ def test_lake_at_rest_is_exact_in_parallel():
 
 
 def _compare(c, tol=1e-10):
-    par = run(c, write=False, comm=WORLD)
-    ser = run(c, write=False, comm=MPI.COMM_SELF) if WORLD.rank == 0 else None
-    if WORLD.rank == 0:
-        assert par.steps == ser.steps
-        np.testing.assert_allclose(par.x, ser.x, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(par.y, ser.y, rtol=0, atol=1e-12)
-        for key in ("h", "hu", "hv", "peak_depth", "peak_speed"):
-            a, b = getattr(par, key), getattr(ser, key)
-            diff = np.abs(a - b).max()
-            print(f"{key}: max |parallel - serial| = {diff:.2e}")
-            assert diff <= tol * max(1.0, np.abs(b).max()), key
-        assert abs(par.series["mass_error"][-1] - ser.series["mass_error"][-1]) < 1e-12
+    assert_same_on_ranks(c, WORLD, tol)
 
 
 def test_same_result_on_one_and_two_ranks_open_slope():
