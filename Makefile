@@ -10,6 +10,10 @@ export OPENBLAS_NUM_THREADS := 1
 SERIAL_TIMEOUT ?= 900
 MPI_TIMEOUT ?= 900
 DEMO_CASE ?= cases/inclined_dam_break.yaml
+# rank independence on 3 ranks too (mpich runs 3 on 2 cores): dam breaks on and off the cuts,
+# the TG2/DAMPM rank comparisons and the hard cases
+RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_tg2_mpi.py \
+	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py
 
 .PHONY: setup demo test test-serial test-mpi lint bench clean
 
@@ -29,8 +33,9 @@ demo: setup
 test: setup
 	@status=0; \
 	$(VENV)/bin/ruff check fem_runout mpm tests || status=1; \
-	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests || status=1; \
+	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests --ignore=tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
+	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n 3 $(PY) -m pytest -q -x $(RANK3_TESTS) || status=1; \
 	exit $$status
 
 lint: setup

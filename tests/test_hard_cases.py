@@ -23,8 +23,8 @@ PARAMS = [
 ]
 
 
-def test_there_are_seven_hard_cases():
-    assert len(hard_case_files()) == 7
+def test_there_are_eight_hard_cases():
+    assert len(hard_case_files()) == 8
 
 
 @pytest.mark.parametrize(("path", "method"), PARAMS)

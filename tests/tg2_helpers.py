@@ -29,11 +29,14 @@ def lake_errors(result, level: float = 10.0, dry: float = 1e-6) -> dict[str, tup
     }
 
 
-def assert_same_on_ranks(c, world, tol: float = 1e-10) -> None:
+def assert_same_on_ranks(c, world, tol: float = 1e-10):
     """Run ``c`` on ``world`` and serially; on rank 0 assert the results agree (collective).
 
     Same steps and particle count (None for mesh methods), same node order, fields and
     peaks within ``tol`` relative, same final volume and mass error to 1e-12.
+
+    Returns:
+        The parallel result on rank 0, None elsewhere.
     """
     from mpi4py import MPI
 
@@ -42,7 +45,7 @@ def assert_same_on_ranks(c, world, tol: float = 1e-10) -> None:
     par = run(c, write=False, comm=world)
     ser = run(c, write=False, comm=MPI.COMM_SELF) if world.rank == 0 else None
     if world.rank != 0:
-        return
+        return None
     assert par.steps == ser.steps and par.particles == ser.particles
     np.testing.assert_allclose(par.x, ser.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(par.y, ser.y, rtol=0, atol=1e-12)
@@ -54,3 +57,4 @@ def assert_same_on_ranks(c, world, tol: float = 1e-10) -> None:
     volume = max(1.0, ser.series["volume"][0])
     assert abs(par.series["volume"][-1] - ser.series["volume"][-1]) <= 1e-12 * volume
     assert abs(par.series["mass_error"][-1] - ser.series["mass_error"][-1]) < 1e-12
+    return par

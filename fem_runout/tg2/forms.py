@@ -28,6 +28,8 @@ from __future__ import annotations
 import ufl
 from dolfinx import fem
 
+from fem_runout.tg2.low_order import BANK_SLOPE
+
 
 def predictor_form(
     state: tuple[fem.Function, fem.Function, fem.Function],
@@ -84,7 +86,7 @@ def corrector_form(
         Wd: Discontinuous Q1 space with 3 components.
         dt: Time step.
         g: Gravity.
-        dry: Dry tolerance on h.
+        dry: Depth δ of the wet weight ``min(1, h/δ)`` (the thin depth κ).
         z: Q1 bed elevation (for the ghost state of open boundaries).
         ds_open: Measure of the open boundary facets, or None if there are none.
         spacing: Cell size (dx, dy) of the structured grid.
@@ -101,8 +103,14 @@ def corrector_form(
     n = ufl.FacetNormal(Wd.mesh)
     hp, hm = hk("+"), hk("-")
     ep, em = cell_eta("+"), cell_eta("-")
-    em_eff = ufl.conditional(ufl.And(ufl.le(hm, dry), ufl.gt(em, ep)), ep, em)
-    ep_eff = ufl.conditional(ufl.And(ufl.le(hp, dry), ufl.gt(ep, em)), em, ep)
+    # a dry cell whose surface stands above the neighbour's takes the neighbour's, blended by
+    # the wet weight min(1, h/δ) (continuous: no switch on round-off)
+    # (low_order.bank_drop: the ramp's width grows with the bank height)
+    drop_m, drop_p = ufl.max_value(em - ep, 0.0), ufl.max_value(ep - em, 0.0)
+    dry_m = 1.0 - ufl.min_value(1.0, ufl.max_value(hm, 0.0) / (dry + BANK_SLOPE * drop_m))
+    dry_p = 1.0 - ufl.min_value(1.0, ufl.max_value(hp, 0.0) / (dry + BANK_SLOPE * drop_p))
+    em_eff = em - dry_m * drop_m
+    ep_eff = ep - dry_p * drop_p
     fluct = g * 0.5 * (hp + hm) * (em_eff - ep_eff)
     psi_m = ufl.as_vector([psi[1], psi[2]])
     dx = ufl.dx(metadata={"quadrature_degree": 1})

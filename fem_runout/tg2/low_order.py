@@ -10,8 +10,10 @@ Rusanov viscosity ``d_ij = λ_ij |β_ij|``,
     mom_i  += -(β_ij·u_i) q*_ij - (β_ij·u_j) q*_ji + d_ij (q*_ji - q*_ij)
     mom_i  += -g h_i Σ_j (η̂_ij - η_i) ∫_K φ_i ∇φ_j   (j over all nodes of K; Σ_j ∫φ_i∇φ_j = 0)
 
-where ``η̂_ij = η_j`` if node j is wet and ``h_j + min(Z_j, η_i)`` if it is dry: a dry bank above
-the water pushes nothing. Each cell's mass contributions sum to zero (conservation), vanish for
+where ``η̂_ij = η_j - (1 - w_j) max(Z_j - η_i, 0)`` (:func:`bank_drop`): ``η_j`` where
+j is wet (``h_j >= δ``), ``h_j + min(Z_j, η_i)`` where it is dry — a dry bank above the water
+pushes nothing — and continuous in between (no mask that switches on round-off). Each
+cell's mass contributions sum to zero (conservation), vanish for
 a lake at rest (also with emerged dry ground), and the update is positive for
 ``dt <= m_i / Σ_j (d_ij + |β_ij·u_i|)`` (this bound, with the eigenvalues ``|u·n| ± sqrt(g h)`` of
 the full system, sets the time step). This is the low-order scheme of seed eq. 15 that the FCT
@@ -23,25 +25,40 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+#: Growth of the wet-weight width with the bank height (see :func:`bank_drop`).
+BANK_SLOPE = 1e-4
+
+
+@numba.njit(cache=True)
+def bank_drop(h, drop, delta):
+    """Part of a bank height ``drop >= 0`` that a node of depth ``h`` stands above the water.
+
+    ``(1 - w) drop`` with the wet weight ``w = min(1, max(h, 0) / (δ + BANK_SLOPE drop))``:
+    all of it where the node is dry, none where it is wet, continuous in between. The width
+    grows with the bank so that the Lipschitz constant ``drop / (δ + ε drop)`` stays below
+    ``1/ε``: with a fixed ``δ = κ`` a round-off change of a film draining over the 20 m cliff
+    moved the result by 4e-4; a fixed ``δ = 1e3 κ`` treated films under 1 mm as banks and
+    slowed a 1 m flow on a steep coarse DEM (outflow 0.004 m³ instead of 390 m³).
+    """
+    return (1.0 - min(1.0, max(h, 0.0) / (delta + BANK_SLOPE * drop))) * drop
+
 
 @numba.njit(cache=True)
 def nodal_velocity(h, qx, qy, tol, kappa, ux, uy):  # noqa: D103 - documented in velocity()
     for i in range(h.shape[0]):
-        if h[i] > tol:
-            hk = max(h[i], kappa)
-            f = 2.0 * h[i] / (h[i] * h[i] + hk * hk)
-            ux[i] = qx[i] * f
-            uy[i] = qy[i] * f
-        else:
-            ux[i] = 0.0
-            uy[i] = 0.0
+        hp = max(h[i], 0.0)
+        hk = max(h[i], kappa)
+        f = 2.0 * hp / (hp * hp + hk * hk)
+        ux[i] = qx[i] * f
+        uy[i] = qy[i] * f
 
 
 def velocity(h, qx, qy, tol: float, kappa: float, ux, uy) -> None:
     """Nodal velocity, desingularised: ``u = 2 h q / (h² + max(h, κ)²)`` (= q/h for h >= κ).
 
-    Zero on dry nodes (``h <= tol``). Written into ``ux``, ``uy``. Kurganov & Petrova (2007):
-    a draining layer keeps a bounded velocity instead of ``q / h → ∞``.
+    Written into ``ux``, ``uy``. Kurganov & Petrova (2007): a draining layer keeps a bounded
+    velocity instead of ``q / h → ∞``; the formula is Lipschitz in (h, q) down to h = 0 (no
+    dry mask, ``tol`` is unused and kept for the signature).
     """
     nodal_velocity(h, qx, qy, tol, kappa, ux, uy)
 
@@ -80,7 +97,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
         ux: Nodal x-velocity (see :func:`velocity`).
         uy: Nodal y-velocity.
         g: Gravity.
-        tol: Dry tolerance on h.
+        tol: Depth δ of the wet weight (:func:`bank_drop`).
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
         cap: (n_nodes,) ``Σ_j (d_ij + |β_ij·u_i|)`` is added here.
     """
@@ -95,9 +112,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
                 if b == a:
                     continue
                 j = nodes[b]
-                eta_hat = h[j] + z[j]
-                if h[j] <= tol:
-                    eta_hat = h[j] + min(z[j], eta_i)
+                eta_hat = h[j] + z[j] - bank_drop(h[j], max(z[j] - eta_i, 0.0), tol)
                 p1 += (eta_hat - eta_i) * C[k, a, b, 0]
                 p2 += (eta_hat - eta_i) * C[k, a, b, 1]
             out[k, a, 0] = 0.0
@@ -134,28 +149,32 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
 
 @numba.njit(cache=True)
 def reconstructed_surface(cells, h, z, tol, out):
-    """Per-cell free surface for the predictor: η on wet nodes, ``min(Z, max wet η)`` on dry.
+    """Per-cell free surface for the predictor: η on wet nodes, ``min(Z, top) + h`` on dry ones.
+
+    ``top`` is the highest surface of the cell's wet part, ``max_a (η_a - (1 - w_a)(Z_a -
+    Z_min))`` (a dry node counts with the cell's lowest bed), and a node gets
+    ``η_a - (1 - w_a) max(Z_a - top, 0)`` with the wet weight ``w_a`` (:func:`bank_drop`):
+    continuous in the data, a lake at rest (also with emerged dry ground) gives a constant η̃.
 
     Args:
         cells: (n, 4) local node indices.
         h: Nodal depth.
         z: Nodal elevation.
-        tol: Dry tolerance.
-        out: (n, 4) output, the DQ1 coefficients of η̃ (lake at rest gives a constant η̃).
+        tol: Depth δ of the wet weight.
+        out: (n, 4) output, the DQ1 coefficients of η̃.
     """
     for k in range(cells.shape[0]):
         nodes = cells[k]
+        zmin = np.inf
+        for a in range(4):
+            zmin = min(zmin, z[nodes[a]])
         top = -np.inf
         for a in range(4):
             i = nodes[a]
-            if h[i] > tol:
-                top = max(top, h[i] + z[i])
+            top = max(top, h[i] + z[i] - bank_drop(h[i], z[i] - zmin, tol))
         for a in range(4):
             i = nodes[a]
-            if h[i] > tol:
-                out[k, a] = h[i] + z[i]
-            else:
-                out[k, a] = h[i] + min(z[i], top) if top > -np.inf else h[i] + z[i]
+            out[k, a] = h[i] + z[i] - bank_drop(h[i], max(z[i] - top, 0.0), tol)
 
 
 @numba.njit(cache=True)
@@ -180,3 +199,55 @@ def cell_means(cells, h, qx, qy, eta_cell, out, out_eta):
         out[k, 1] = 0.25 * s1
         out[k, 2] = 0.25 * s2
         out_eta[k] = 0.25 * se
+
+
+
+@numba.njit(cache=True)
+def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
+    """Extend per-node momentum bounds by the momenta of the low-order bar states.
+
+    The Rusanov update of an interior node is ``U_i + dt/m_i Σ_j 2 d_ij (Ū_ij - U_i)``, a
+    convex combination of the bar states ``Ū_ij = (U*_i + U*_j)/2 - β_ij·(F(U*_j) -
+    F(U*_i)) / (2 d_ij)`` of the hydrostatically reconstructed states ``U*`` (Guermond &
+    Popov 2016; Hajduk & Kuzmin 2022): they are the states the low-order method itself
+    reaches next to each node. On a slope they include the hydrostatic pressure jump of the
+    reconstruction, so a uniform sheet on an incline has room for the TG2 correction.
+
+    Args:
+        cells: (n, 4) local nodes of every local cell (ghost cells too: the whole patch).
+        beta: (n, 6, 2) pair coefficients of the same cells.
+        h: Nodal depth.
+        ux: Nodal x-velocity (desingularised).
+        uy: Nodal y-velocity.
+        z: Nodal elevation.
+        g: Gravity.
+        vmax: (2, n_nodes) upper bounds of (hu, hv), extended in place.
+        vmin: (2, n_nodes) lower bounds, extended in place.
+    """
+    for k in range(cells.shape[0]):
+        for p in range(6):
+            i = cells[k, PAIRS[p, 0]]
+            j = cells[k, PAIRS[p, 1]]
+            bx = beta[k, p, 0]
+            by = beta[k, p, 1]
+            nb = np.sqrt(bx * bx + by * by)
+            zm = max(z[i], z[j])
+            hi_ = max(0.0, h[i] + z[i] - zm)
+            hj_ = max(0.0, h[j] + z[j] - zm)
+            bu_i = bx * ux[i] + by * uy[i]
+            bu_j = bx * ux[j] + by * uy[j]
+            d = max(abs(bu_i) + np.sqrt(g * max(h[i], 0.0)) * nb,
+                    abs(bu_j) + np.sqrt(g * max(h[j], 0.0)) * nb)
+            if d <= 0.0:
+                continue
+            dp = 0.5 * g * (hj_ * hj_ - hi_ * hi_)
+            for c in range(2):
+                ui = ux[i] if c == 0 else uy[i]
+                uj = ux[j] if c == 0 else uy[j]
+                bc = bx if c == 0 else by
+                v = 0.5 * (hi_ * ui + hj_ * uj) - (bu_j * hj_ * uj - bu_i * hi_ * ui
+                                                   + dp * bc) / (2.0 * d)
+                vmax[c, i] = max(vmax[c, i], v)
+                vmin[c, i] = min(vmin[c, i], v)
+                vmax[c, j] = max(vmax[c, j], v)
+                vmin[c, j] = min(vmin[c, j], v)

@@ -70,6 +70,7 @@ class TG2Solver:
             return
         self.transport.step(0.5 * dt)
         t = self.transport
+        rest = self._unused_capacity(t.state(), dt)
         q = self.reaction.step(t.state()[:, 1:], dt)
         state = t.state()
         state[:, 1:] = q
@@ -77,7 +78,6 @@ class TG2Solver:
             if side.kind == "wall":
                 state[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
         t.set_state(state)
-        held = (np.hypot(q[:, 0], q[:, 1]) == 0.0) & (state[:, 0] > t.tol)
         remaining = 0.5 * dt
         while remaining > 0.0:
             sub = min(remaining, self.cfl * t.stable_dt())
@@ -85,26 +85,29 @@ class TG2Solver:
                 sub = remaining
             t.step(sub)
             remaining -= sub
-        self._hold(held, 0.5 * dt)
+        if rest is not None:
+            state = t.state()
+            norm = np.hypot(state[:, 1], state[:, 2])
+            keep = np.where(norm > rest, 1.0 - rest / np.where(norm > 0.0, norm, 1.0), 0.0)
+            state[:, 1:] *= keep[:, None]
+            t.set_state(state)
 
-    def _hold(self, held: np.ndarray, half: float) -> None:
-        """Apply static Coulomb friction over the second half step to nodes D brought to rest.
+    def _unused_capacity(self, state: np.ndarray, dt: float) -> np.ndarray | None:
+        """Coulomb capacity left after D, ``max(0, dt g μ h - |q|)``, per node (or None).
 
-        Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step, which gives a layer
-        that friction holds at rest the impulse ``g S h dt/2`` of its slope. A node that ``D``
-        stopped stays at rest if that impulse is within the Coulomb capacity of the half step,
-        ``|q| <= (dt/2) g μ h`` — the yield test of the friction law itself. Moving nodes are
-        not touched.
+        Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step that gives a layer
+        at rest on a slope the impulse ``g S h dt/2``. D has the whole step's Coulomb
+        capacity ``dt g μ h`` and used ``|q|`` of it to stop the node; what is left holds
+        the second half's impulse: ``q ← q max(0, 1 - rest/|q|)`` after it, the yield test
+        of the friction law itself. Giving the second half its own full capacity
+        ``dt/2 g μ h`` instead stopped a decelerating sheet up to a quarter step early
+        (Coulomb stop test). A projection with no mask: moving nodes have ``rest = 0``.
         """
         friction = self.reaction.friction if self.reaction is not None else None
-        if friction is None or not held.any():
-            return
-        t = self.transport
-        state = t.state()
-        cap = half * friction.gravity * friction.mu * state[:, 0]
-        stop = held & (np.hypot(state[:, 1], state[:, 2]) <= cap)
-        state[stop, 1:] = 0.0
-        t.set_state(state)
+        if friction is None or friction.mu == 0.0:
+            return None
+        cap = dt * friction.gravity * friction.mu * np.maximum(state[:, 0], 0.0)
+        return np.maximum(cap - np.hypot(state[:, 1], state[:, 2]), 0.0)
 
     def snapshot(self) -> tuple[np.ndarray, float]:
         """Copy the state, to restore the last good step."""

@@ -7,9 +7,10 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
 2. predictor into DG0 (UFL form, eq. 10 first line);
 3. corrector element contributions A_H[K, i] (UFL form on discontinuous Q1, eqs. 10–12);
 4. low-order Rusanov element contributions A_L[K, i] (numba, :mod:`.low_order`);
-5. Zalesak factors per cell (:mod:`.fct`): α_h from bounds on the free surface where wet and
-   on h where dry (h >= 0), α_q for the momenta from relaxed local bounds;
-   ``m_i Q^{n+1} = m_i Q^L + Σ_K α_K (A_H - A_L)[K, i]``;
+5. the edge-based, bound-preserving limiter of :mod:`.limiter` (depth within hydrostatic
+   patch bounds, momenta within the patch's and the bar states' bounds), Lipschitz in the
+   data; ``m_i Q^{n+1} = m_i Q^L + Σ_K (Σ_j f*_ij + μ*_i)``; then the speed bound of
+   :func:`.bounds.bound_speed` (Riemann invariant plus bed drop, continuous weights);
 6. boundary fluxes (open: outflow with the node's own state; wall: zero normal momentum).
 """
 
@@ -22,6 +23,7 @@ from dolfinx import fem, la
 from fem_runout.mesh import Discretization, GhostReducer, open_boundary_measure
 from fem_runout.tg2 import bounds, fct
 from fem_runout.tg2.forms import corrector_form, predictor_form
+from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
     cell_means,
     low_order_pass,
@@ -30,8 +32,8 @@ from fem_runout.tg2.low_order import (
     velocity,
 )
 
-#: Relaxation of the momentum bounds, as a fraction of the local range of the momentum.
-MOMENTUM_SLACK = 0.5
+#: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
+WET_DEPTH = 1e3
 
 
 class Transport:
@@ -57,8 +59,8 @@ class Transport:
         self.g = float(gravity)
         self.tol = float(dry_tolerance)
         self.kappa = max(float(thin_depth), self.tol)
-        #: depth under which the momenta are limited with the mass (1e-3 h_max by default)
-        self.thin_momentum = 1e3 * self.kappa
+        #: width of the wet weight min(1, h/δ) of the slope time-step limit
+        self.wet_depth = WET_DEPTH * self.kappa
         self._slope: np.ndarray | None = None
         self.fct_enabled = fct_enabled
         msh, V = disc.mesh, disc.V
@@ -76,7 +78,7 @@ class Transport:
         state, vel = (self.h, self.hu, self.hv), (self.ux, self.uy)
         self.pred_form = predictor_form(state, vel, self.eta_t, W0, self.dt, g)
         self.corr_form = corrector_form(
-            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, self.tol), self.z,
+            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, self.kappa), self.z,
             open_boundary_measure(disc), disc.spacing,
         )
         self.b_pred = fem.assemble_vector(self.pred_form)
@@ -91,6 +93,7 @@ class Transport:
         self._dof0 = _as_slice(self._dof0)
         self._dofs0 = _as_slice(self._dofs0)
         self.reducer = GhostReducer(disc)
+        self.limiter = Limiter(disc, self.reducer, self.g, self.kappa)
         self.outflow_volume = 0.0
         nn, no = disc.coords.shape[0], disc.n_owned_cells
         self._lo = np.zeros((no, 4, 3))
@@ -148,8 +151,9 @@ class Transport:
 
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
-        wet = self.h.x.array[: self.disc.n_owned_nodes] > self.tol
-        s = self._slope[: self.disc.n_owned_nodes][wet]
+        own = slice(0, self.disc.n_owned_nodes)
+        wet = np.clip(self.h.x.array[own] / self.wet_depth, 0.0, 1.0)  # continuous wet weight
+        s = self._slope[own] * wet
         local = float(s.max()) if s.size else 0.0
         top = self.disc.comm.allreduce(local, op=MPI.MAX)
         return float(np.sqrt(min(self.disc.spacing) / (self.g * top))) if top > 0 else np.inf
@@ -160,7 +164,7 @@ class Transport:
         velocity(h, hu, hv, self.tol, self.kappa, self.ux.x.array, self.uy.x.array)
         self._cap[:] = 0.0
         low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
-                       self.uy.x.array, self.g, self.tol, self._lo, self._cap)
+                       self.uy.x.array, self.g, self.kappa, self._lo, self._cap)
         self._fresh = True
 
     def step(self, dt: float) -> None:
@@ -172,7 +176,7 @@ class Transport:
             self._low_order_pass()
         eta_t = self.eta_t.x.array.reshape(-1)
         cell_eta = self._cell_eta
-        reconstructed_surface(d.cell_nodes, h, z, self.tol, cell_eta)
+        reconstructed_surface(d.cell_nodes, h, z, self.kappa, cell_eta)
         if isinstance(self._dofsd, slice):
             eta_t.reshape(-1, 4)[self._dofsd] = cell_eta
         else:
@@ -182,13 +186,14 @@ class Transport:
         low_rate = self._low_order_rates(h, hu, hv)
         q_low = q0 + dt * low_rate
         aec = high - dt * self._lo
-        corr = np.zeros_like(q0)
         if self.fct_enabled:
-            for c, alpha in enumerate(self._limit(q0, q_low, aec)):
-                fct.scatter_cells(self._owned, aec[:, :, c : c + 1], alpha, corr[:, c : c + 1])
+            corr = self.limiter.correction(q0, q_low, aec, self.z.x.array,
+                                           np.stack([self.ux.x.array, self.uy.x.array]))
         else:
-            fct.scatter_cells(self._owned, aec, np.ones(len(self._owned)), corr)
-        q_new = q_low + d.nodal_sum(corr) / d.lumped_mass[:, None]
+            corr = np.zeros_like(q0)
+            fct.scatter_cells(self._owned, aec, corr)
+            corr = d.nodal_sum(corr)
+        q_new = q_low + corr / d.lumped_mass[:, None]
         self._bound_speed(q_low, q_new)
         self._finalise(q_new)
         self.set_state(q_new)
@@ -211,9 +216,8 @@ class Transport:
         Qk[self._dof0] = vals
         hk = vals[:, 0]
         self.etak.x.array[self._dofs0] = eta_mean + delta[:, 0]
-        hk_safe = np.maximum(hk, self.tol)
-        factor = np.where(hk > self.tol, 2.0 * hk_safe / (hk_safe**2 + np.maximum(hk, self.kappa)
-                                                          ** 2), 0.0)
+        hk_pos = np.maximum(hk, 0.0)
+        factor = 2.0 * hk_pos / (hk_pos**2 + np.maximum(hk, self.kappa) ** 2)
         self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
         b = self.b_corr
         b.array[:] = 0.0
@@ -227,7 +231,7 @@ class Transport:
         """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i from self._lo."""
         d = self.disc
         acc = np.zeros((h.shape[0], 3))
-        fct.scatter_cells(self._owned, self._lo, np.ones(len(self._owned)), acc)
+        fct.scatter_cells(self._owned, self._lo, acc)
         acc = d.nodal_sum(acc)
         acc += self._boundary_flux(h, hu, hv)
         return acc / d.lumped_mass[:, None]
@@ -253,81 +257,16 @@ class Transport:
             flux[i, 2] -= w * hv[i] * un
         return flux
 
-    def _limit(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray) -> list[np.ndarray]:
-        """Zalesak factors (α_h, α_hu, α_hv) per owned cell (collective).
-
-        The mass is bounded on the well-balanced variable of eq. 13 — the free surface where
-        the low-order node is wet, the depth where it is dry — and always ``h >= 0``. The
-        momenta get one factor each from patch bounds relaxed by ``MOMENTUM_SLACK`` times the
-        local range. One factor per component: a factor shared by hu and hv let the round-off
-        of hv in a y-invariant flow limit hu at random (6 % transverse spread). Apart from the
-        mass factor: where the depth is flat the mass bounds leave no room at all, and a shared
-        factor would hand the momenta to the diffusive low-order scheme (a viscous shear mode
-        then decayed 45 % too fast); strict momentum bounds clip the momentum peak of a dry-bed
-        rarefaction (Ritter L1 error 0.139 → 0.216 at dx = 0.25 m).
-        """
-        d = self.disc
-        upper, lower = self._bounds(q0, q_low, self.z.x.array)
-        m = d.lumped_mass
-        alphas = []
-        for comps in ((0,), (1,), (2,)):
-            nn = q0.shape[0]
-            sums = np.zeros((nn, 2 * len(comps)))
-            for k, c in enumerate(comps):
-                fct.antidiffusive_sums(self._owned, np.ascontiguousarray(aec[:, :, c]),
-                                       sums[:, 2 * k], sums[:, 2 * k + 1])
-            sums = d.nodal_sum(sums)
-            ratios = np.empty_like(sums)
-            for k, c in enumerate(comps):
-                ratios[:, 2 * k], ratios[:, 2 * k + 1] = fct.zalesak_ratios(
-                    sums[:, 2 * k], sums[:, 2 * k + 1], m * (upper[:, c] - q_low[:, c]),
-                    m * (lower[:, c] - q_low[:, c]))
-            d.update_ghosts(ratios)
-            alpha = np.ones(len(self._owned))
-            for k, c in enumerate(comps):
-                fct.cell_factors(self._owned, np.ascontiguousarray(aec[:, :, c]),
-                                 np.ascontiguousarray(ratios[:, 2 * k]),
-                                 np.ascontiguousarray(ratios[:, 2 * k + 1]), alpha)
-            alphas.append(alpha)
-        # near thin layers the momenta share the mass factor: there the momentum bounds alone
-        # let a draining tail (h -> 0) keep its momentum and |q|/h blew up (1e151 m/s)
-        thin = np.minimum(q0[:, 0], q_low[:, 0]) < self.thin_momentum
-        near_thin = thin[self._owned].any(axis=1)
-        alpha_h = alphas[0]
-        return [alpha_h] + [np.where(near_thin, np.minimum(alpha_h, a), a) for a in alphas[1:]]
-
-    def _bounds(self, q0, q_low, z) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds (n, 3): depth from η (wet) or h (dry) patch extrema; relaxed momenta."""
-        cells = self.disc.cell_nodes
-        nn = q0.shape[0]
-        hi, lo = np.full((nn, 4), -np.inf), np.full((nn, 4), np.inf)
-        wet0, wetl = q0[:, 0] > self.tol, q_low[:, 0] > self.tol
-        everyone = np.ones(nn, dtype=np.bool_)
-        for vals, mask in ((q0[:, 0] + z, wet0), (q_low[:, 0] + z, wetl)):
-            fct.patch_extrema(cells, vals, mask, hi[:, 0], lo[:, 0])
-        for c in range(3):
-            for state in (q0, q_low):
-                fct.patch_extrema(cells, np.ascontiguousarray(state[:, c]), everyone,
-                                  hi[:, c + 1], lo[:, c + 1])
-        for c in range(4):
-            self.reducer.reduce(hi[:, c], "max")
-            self.reducer.reduce(lo[:, c], "min")
-        h_low = q_low[:, 0]
-        upper, lower = np.empty((nn, 3)), np.empty((nn, 3))
-        upper[:, 0] = np.maximum(np.where(wetl, hi[:, 0] - z, hi[:, 1]), h_low)
-        lower[:, 0] = np.minimum(np.where(wetl, np.maximum(lo[:, 0] - z, 0.0), 0.0), h_low)
-        slack = MOMENTUM_SLACK * (hi[:, 2:] - lo[:, 2:])
-        upper[:, 1:] = hi[:, 2:] + slack
-        lower[:, 1:] = lo[:, 2:] - slack
-        return upper, lower
-
     def _bound_speed(self, q_low: np.ndarray, q: np.ndarray) -> None:
-        """Scale back momenta above the deeper-neighbour bound (:func:`.bounds.bound_speed`)."""
+        """Scale back momenta above the patch speed bound (:func:`.bounds.bound_speed`)."""
+        ux, uy = np.empty(q.shape[0]), np.empty(q.shape[0])
+        velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
+                 np.ascontiguousarray(q_low[:, 2]), self.tol, self.kappa, ux, uy)
         bounds.bound_speed(self.disc.cell_nodes, self.reducer, q_low, q, self.z.x.array, self.g,
-                           self.tol, _speed(q_low, self.tol, self.kappa))
+                           np.hypot(ux, uy))
 
     def _finalise(self, q: np.ndarray) -> None:
-        """Walls: zero normal momentum; dry nodes: zero momentum; outflow bookkeeping."""
+        """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping."""
         d = self.disc
         for side in d.sides:
             if side.kind == "wall":
@@ -337,10 +276,9 @@ class Transport:
         hmax = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
         tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
         q[tiny, 0] = 0.0
-        dry = q[:, 0] <= self.tol
-        q[dry, 1:] = 0.0
-        thin = ~dry & (q[:, 0] < self.kappa)
-        ht = q[thin, 0]
+        # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
+        thin = q[:, 0] < self.kappa
+        ht = np.maximum(q[thin, 0], 0.0)
         q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
         out = 0.0
         h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
@@ -351,14 +289,6 @@ class Transport:
                 un = np.maximum(ux[i] * side.normal[0] + uy[i] * side.normal[1], 0.0)
                 out += float(np.sum(side.weight[own] * h[i] * un))
         self.outflow_volume += float(self.dt.value) * d.comm.allreduce(out)
-
-
-def _speed(q: np.ndarray, tol: float, kappa: float) -> np.ndarray:
-    """Desingularised speed ``|q| 2h / (h² + max(h, κ)²)`` per node, 0 where dry."""
-    h = q[:, 0]
-    hs = np.maximum(h, tol)
-    f = np.where(h > tol, 2.0 * hs / (hs * hs + np.maximum(h, kappa) ** 2), 0.0)
-    return np.hypot(q[:, 1], q[:, 2]) * f
 
 
 def _as_slice(dofs: np.ndarray) -> np.ndarray | slice:

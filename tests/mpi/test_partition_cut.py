@@ -1,0 +1,62 @@
+"""Dam breaks with the discontinuity on a partition cut and away from it (issue 13).
+
+Run under ``mpiexec -n 2`` and ``-n 3`` (make test does both): Stoker's wet-bed dam break
+(depth ratios 10:1 and 100:1) and Ritter's dry-bed one, both methods, the dam on the first
+boundary between two ranks' cells and elsewhere. Every run must reach its end without a
+negative depth (the runner stops on one), match the serial run to 1e-10 (relative, every
+field and peak) and the exact solution to a few per cent (L1 of h at 400 cells).
+"""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fem_runout.config import load_case
+from fem_runout.mesh import build_discretization
+from fem_runout.references.norms import l1, nodal_weights
+from fem_runout.references.stoker import dam_break_case, exact_depth
+from tests.tg2_helpers import assert_same_on_ranks
+
+WORLD = MPI.COMM_WORLD
+CELLS = (400, 4)
+END = 2.0
+#: relative L1 error of h at 400 cells (measured 0.4–1.4 %; first-order fronts allow more)
+MAX_ERROR = 0.05
+
+
+def partition_cuts(comm) -> list[float]:
+    """x of the boundaries between the ranks' owned cells of the strip (a straight cut)."""
+    disc = build_discretization(comm, (0.0, 100.0, 0.0, 2.0), CELLS, {})
+    xc = disc.coords[disc.cell_nodes[: disc.n_owned_cells], 0].mean(axis=1)
+    dx = 100.0 / CELLS[0]
+    spans = comm.allgather((float(xc.min() - dx / 2), float(xc.max() + dx / 2), xc.size))
+    for lo, hi, n in spans:  # whole columns: the cut is a line x = const
+        assert n == round((hi - lo) / dx) * CELLS[1]
+    return sorted({round(b, 9) for lo, hi, _ in spans for b in (lo, hi)} - {0.0, 100.0})
+
+
+CUTS = partition_cuts(WORLD)
+
+
+def test_the_strip_is_cut_into_one_piece_per_rank():
+    assert len(CUTS) == WORLD.size - 1
+
+
+@pytest.mark.parametrize("method", ["tg2", "mpm"])
+@pytest.mark.parametrize("where", ["cut", "away"])
+@pytest.mark.parametrize("h_r", [0.1, 0.01, 0.0], ids=["stoker10", "stoker100", "ritter"])
+def test_dam_break_on_and_off_the_cut(method, where, h_r):
+    x0 = CUTS[0] if where == "cut" else 40.0
+    assert (where == "cut") == any(abs(x0 - c) < 1e-9 for c in CUTS)
+    case = load_case(dam_break_case(1.0, h_r, x0, CELLS, END, method))
+    par = assert_same_on_ranks(case, WORLD, 1e-10)
+    if WORLD.rank != 0:
+        return
+    exact = exact_depth(par.x, par.t, 1.0, h_r, x0, case.gravity)
+    w = nodal_weights(par.x, par.y)
+    err = l1(par.h - exact, w) / l1(exact, w)
+    print(f"{method} dam break h_r={h_r} at x0={x0} ({where}) on {WORLD.size} ranks: "
+          f"L1 {err:.3e}, min h {par.h.min():.3e}, {par.steps} steps")
+    assert par.t == pytest.approx(END)
+    assert np.all(par.h >= 0.0)
+    assert err < MAX_ERROR
