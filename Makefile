@@ -44,7 +44,7 @@ lint: setup
 # the suite runs every benchmark with every implemented method on 1 and 2 ranks (< 30 min);
 # the TG2-only fine-grid report is `$(PY) -m fem_runout.bench tg2-report` (about 12 min)
 bench: setup
-	$(PY) -m fem_runout.bench suite --out docs/benchmarks.md --figures docs/figures
+	$(PY) -m fem_runout.bench suite --ranks 1 2 3 --out docs/benchmarks.md --figures docs/figures
 	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 --out docs/step_cost.md
 	$(PY) -m fem_runout.bench step-cost --cells 250 --steps 20 --ranks 1 2 \
 		--case cases/hemisphere_bingham.yaml --out docs/step_cost_rheology.md

@@ -107,7 +107,9 @@ def test_inclined_dam_break_front_approaches_exact_tip():
         print(f"t={t}: fronts {row} exact {exact_front(t):.1f} paper TG2(5.5 s) "
               f"{PAPER_FRONT['tg2'][5.5]}")
         gaps = [exact_front(t) - f for f in row]
-        assert gaps[0] > gaps[1] > gaps[2] > -1.0  # monotone approach, never past the tip
+        # monotone approach, never past the tip; fronts are node positions (last node with
+        # h > 1e-3), so two levels can tie (70.91 m at 330 and 660 cells at 2.75 s)
+        assert gaps[0] >= gaps[1] >= gaps[2] > -1.0 and gaps[0] > gaps[2]
     assert fronts[1320][5.5] > PAPER_FRONT["tg2"][5.5]
 
 

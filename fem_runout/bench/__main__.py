@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from types import ModuleType
 
-from fem_runout.bench import dampm_report, real_case, step_cost, suite, tg2_report
+from fem_runout.bench import (
+    before_after,
+    dampm_report,
+    real_case,
+    step_cost,
+    suite,
+    tg2_report,
+)
 
 COMMANDS: dict[str, ModuleType] = {
     "step-cost": step_cost,
@@ -13,6 +20,7 @@ COMMANDS: dict[str, ModuleType] = {
     "tg2-report": tg2_report,
     "dampm-report": dampm_report,
     "real-case": real_case,
+    "before-after": before_after,
 }
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 

@@ -90,6 +90,25 @@ def ritter(nx: int, method: str, comm) -> Level:
     return _level(f"{nx}×2", case, r, _bcast(comm, err))
 
 
+def stoker(nx: int, method: str, comm, h_r: float = 0.1) -> Level:
+    """Relative L1 of h at t = 2 s, dam at x0 = 50 m (the 2-rank partition cut at 400 cells)."""
+    from fem_runout.references.norms import l1, nodal_weights
+    from fem_runout.references.stoker import dam_break_case, exact_depth
+
+    case, r = _run(dam_break_case(1.0, h_r, 50.0, (nx, 4), 2.0, method), method, comm)
+    err, low = None, None
+    if r.x is not None:
+        exact = exact_depth(r.x, r.t, 1.0, h_r, 50.0, case.gravity)
+        w = nodal_weights(r.x, r.y)
+        err, low = l1(r.h - exact, w) / l1(exact, w), float(r.h.min())
+    return _level(f"{nx}×4", case, r, _bcast(comm, err), min_h=_bcast(comm, low))
+
+
+def stoker_100(nx: int, method: str, comm) -> Level:
+    """As :func:`stoker` with the depth ratio 100:1."""
+    return stoker(nx, method, comm, h_r=0.01)
+
+
 def thacker(n: int, method: str, comm, periods: float = 1.0) -> Level:
     """L1 of h on the disc 0.2 m inside the wet/dry line; full-domain L1 as extra."""
     from fem_runout.references import thacker as ref

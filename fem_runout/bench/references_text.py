@@ -14,6 +14,15 @@ PAPER_TABLE2 = {"h": ("1.26e-12", "1.26e-14", "2.68e-13", "8.92e-15"),
                 "hv": ("1.22e-13", "3.25e-14", "1.67e-13", "2.02e-14")}
 
 REFERENCES = {
+    "stoker": (
+        "Reference (`fem_runout/references/stoker.py`; Stoker 1957): still water h_l = 1 m on "
+        "x ≤ x0 = 50 m and h_r beyond (0.1 or 0.01 m), flat and frictionless; a rarefaction "
+        "into the left state, a middle state (h_m, u_m) from the Riemann invariant and the "
+        "Rankine–Hugoniot condition, and a shock moving right. Domain 100 m × 2 m, 4 cells "
+        "across, slip walls on the long sides, open ends. x0 = 50 m lies on the cut between "
+        "the two ranks' cells at 400 cells (issue 13: a 2-rank run with the dam on the cut "
+        "stopped with a negative depth); `tests/mpi/test_partition_cut.py` puts the dam on "
+        "the cuts of 2 and 3 ranks and elsewhere. First order (a shock and kinks)."),
     "ritter": (
         "Reference (`fem_runout/references/ritter.py`; Ritter 1892): still layer h0 = 1 m on "
         "x ≤ x0 = 50 m, dry bed beyond, flat and frictionless; with c0 = sqrt(g h0), "
@@ -117,18 +126,18 @@ well-balancing; both pass every hard case.
   by a few particles metres apart, and an isolated point particle cannot move its own front.
   Particle domains (GIMP) that stretch with the flow and split when they exceed the particle
   spacing, on an alias-free uniform lattice, give the first-order convergence above.
-- 1 and 2 ranks: the largest relative difference of the error between the 1- and 2-rank runs
-  over the ladders above is {mpm_rank_spread} for DAMPM, {tg2_rank_spread} for TG2-PC. Before
-  points below the dry tolerance stopped getting particles, near-massless shoreline particles
-  (V ~ 1e-20 m³, erratic FLIP velocities) set DAMPM's time step on Thacker's bowl and the two
-  periods differed by 27 % at 40×40 (L1 1.26e-3 against 1.60e-3). TG2-PC's spread is not a
-  bug of the parallel code but round-off amplified by its momentum limiter: on the Voellmy
-  sheet (200 cells, 1 rank) a 1e-15 relative perturbation of the initial depth grows to 2e-2
-  m in h within 4 s, travelling with the head of the rarefaction from the upstream wall; with
-  `numerics.fct: false` it stays at 1e-14, with only the mass limited at 1e-10. The Zalesak
-  factors of the momenta switch by O(1) there (a min over nodes of ratios of small sums), so
-  the 1- and 2-rank runs, whose sums differ in the last bit, end up apart by about the size of
-  the error itself on the Voellmy sheet and the Coulomb incline. Not fixed (issue noted).
+- 1, 2 and 3 ranks: the largest relative difference of the error between the 1-rank run and
+  the runs on more ranks over every ladder above is {mpm_rank_spread} for DAMPM,
+  {tg2_rank_spread} for TG2-PC. Before issue 13 TG2-PC's spread reached 4.5e-2 (Mangeney at
+  400×2): its element-based Zalesak factors (one per cell, a min over nodes of ratios of small
+  sums) and the wet/dry and "deeper neighbour" switches around them amplified a last-bit
+  difference of a sum into an O(1) change (a 1e-15 perturbation of the initial depth grew to
+  2e-2 m on the Voellmy sheet). The limiter is now edge-based and every bound and mask is
+  continuous (docs/method.md, "Continuity in the data"); `tests/test_continuity.py` checks
+  that a 1e-14 perturbation moves the result by at most 1e-9. Before points below the dry
+  tolerance stopped getting particles, near-massless shoreline particles (V ~ 1e-20 m³,
+  erratic FLIP velocities) set DAMPM's time step on Thacker's bowl and the two periods
+  differed by 27 % at 40×40.
 
 **Seed Table 1.** Our relative front errors (exact dry-bed tip as reference) are larger than
 the paper's ({dam_last:.3f} at 11 s on the finest grid against 0.0121) and shrink slowly with the
@@ -138,14 +147,16 @@ are 61 m and 155 m behind the exact tip of the frictionless dry-bed problem it s
 it. We are worse than the paper in the printed relative-error column, and we cannot tell which
 reference the paper used.
 
-**Stability (hard cases).** Both methods pass all seven hard cases on 1 and 2 ranks (table
-above; `tests/test_hard_cases.py`, `tests/mpi/test_hard_cases_mpi.py`): end time reached,
-h >= 0, volume to 1e-15 (TG2-PC) and 1e-13 (DAMPM, the projection's round-off), speeds within
-the bound. TG2-PC needed two fixes found by these cases: a speed bound in drying nodes from the
-deeper neighbours (Riemann invariant plus bed drop; before, the cliff, pit and rough terrain
-reached 81–5000 m/s) and a time-step limit from the slope acceleration (the thin film used to
-run in one 3 s step). DAMPM needed the PIC velocity next to friction-stopped nodes (the pit
-crept at 2e-3 m/s); its explicit stress makes stiff Bingham expensive (many more steps than
+**Stability (hard cases).** Both methods pass all eight hard cases on 1, 2 and 3 ranks (table
+above; `tests/test_hard_cases.py`, `tests/mpi/test_hard_cases_mpi.py`): end time reached, h >=
+0, volume to 1e-15 (TG2-PC) and 1e-13 (DAMPM, the projection's round-off), speeds at most 90 %
+of the energy bound, and below the 30 m drop within 10 % of free fall plus the release's wave
+speed (TG2-PC reached 50 m/s there against 37.6 before its speed-bound margin went from 1.5 to
+0.25 wave speeds). TG2-PC needed two fixes found by these cases: a speed bound in drying nodes
+from the deeper neighbours (Riemann invariant plus bed drop; before, the cliff, pit and rough
+terrain reached 81–5000 m/s) and a time-step limit from the slope acceleration (the thin film
+used to run in one 3 s step). DAMPM needed the PIC velocity next to friction-stopped nodes (the
+pit crept at 2e-3 m/s); its explicit stress makes stiff Bingham expensive (many more steps than
 TG2-PC's RKC step, hard-case table).
 
 **Speed.** Wall times are the time loop only, on the 2-core machine; {faster} of {levels}

@@ -27,6 +27,12 @@ TAG = "SUITE_RESULT "
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("ritter", "Ritter dry-bed dam break", "L1 of h per metre of width at t = 4 s [m²]",
               "ritter", (100, 200, 400, 800), ladders.ritter),
+    Benchmark("stoker", "Stoker wet-bed dam break, depth ratio 10:1",
+              "relative L1 of h at t = 2 s (then: the smallest depth, exact 0.1 m)", "stoker",
+              (100, 200, 400, 800), ladders.stoker),
+    Benchmark("stoker_100", "Stoker wet-bed dam break, depth ratio 100:1",
+              "relative L1 of h at t = 2 s (then: the smallest depth, exact 0.01 m)", "stoker",
+              (100, 200, 400, 800), ladders.stoker_100),
     Benchmark("thacker", "Thacker's planar surface in a paraboloid",
               "L1 of h after one period on the disc 0.2 m inside the wet/dry line [m³] "
               "(then: the whole domain, and the L1 on bands 0–0.25, 0.25–0.5, 0.5–0.8 m from "

@@ -207,3 +207,37 @@ def scatter_cells(cells, contrib, out):
             i = cells[k, a]
             for c in range(contrib.shape[2]):
                 out[i, c] += contrib[k, a, c]
+
+
+@numba.njit(cache=True)
+def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
+    """Patch bounds of two states in one pass over the cells (extends ``hi``/``lo`` (3, n)).
+
+    Row 0: the hydrostatic depth candidates of :func:`depth_candidates`; rows 1, 2: the
+    extrema of the momenta; both states (old and low-order) count.
+    """
+    for k in range(cells.shape[0]):
+        for s in range(2):
+            h = h0 if s == 0 else h1
+            qx = qx0 if s == 0 else qx1
+            qy = qy0 if s == 0 else qy1
+            mx_hi, mx_lo, my_hi, my_lo = -np.inf, np.inf, -np.inf, np.inf
+            for a in range(4):
+                i = cells[k, a]
+                mx_hi = max(mx_hi, qx[i])
+                mx_lo = min(mx_lo, qx[i])
+                my_hi = max(my_hi, qy[i])
+                my_lo = min(my_lo, qy[i])
+                eta_i = h[i] + z[i]
+                for b in range(4):
+                    j = cells[k, b]
+                    top = max(z[i], z[j])
+                    c = h[i] + max(0.0, h[j] + z[j] - top) - max(0.0, eta_i - top)
+                    hi[0, i] = max(hi[0, i], c)
+                    lo[0, i] = min(lo[0, i], c)
+            for a in range(4):
+                i = cells[k, a]
+                hi[1, i] = max(hi[1, i], mx_hi)
+                lo[1, i] = min(lo[1, i], mx_lo)
+                hi[2, i] = max(hi[2, i], my_hi)
+                lo[2, i] = min(lo[2, i], my_lo)

@@ -42,8 +42,9 @@ THIN_RATIO = 0.1
 
 #: Floor of ``P`` in the depth's sign-free ratio that caps thin-layer momenta, in ``m_i κ``.
 #: It bounds the ratio's Lipschitz constant: with ``m_i κ`` the round-off at the draining
-#: upstream end of the inclined dam break grew to a 1e-3 transverse spread (1e-12 now).
-RATIO_FLOOR = 100.0
+#: upstream end of the inclined dam break grew to a 1e-3 transverse spread (1e-11 with 10);
+#: 100 held the dam-break tip back (front error 0.080 instead of 0.065 at 450 cells).
+RATIO_FLOOR = 10.0
 
 
 class Limiter:
@@ -100,10 +101,8 @@ class Limiter:
         nn = q0.shape[0]
         hi, lo = np.full((3, nn), -np.inf), np.full((3, nn), np.inf)
         cells = self.disc.cell_nodes
-        for state in (q0, q_low):
-            fct.depth_candidates(cells, np.ascontiguousarray(state[:, 0]), z, hi[0], lo[0])
-            for c in (1, 2):
-                fct.patch_extrema(cells, np.ascontiguousarray(state[:, c]), hi[c], lo[c])
+        a, b = np.ascontiguousarray(q0.T), np.ascontiguousarray(q_low.T)
+        fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
         bar_state_extrema(cells, self.beta_all, q0[:, 0], u[0], u[1], z, self.g, hi[1:], lo[1:])
         for c in range(3):
             self.reducer.reduce(hi[c], "max")
