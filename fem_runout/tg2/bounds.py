@@ -23,13 +23,14 @@ SPEED_MARGIN = 0.25
 def deeper_patch_max(cells, speed, depth, z, g, vmax):
     """Speed bound from the patch: Riemann invariant plus the drop in bed, deeper nodes weighted.
 
-    For every node ``j`` of i's cells (i itself included), ``vmax[i]`` is extended by
+    For every other node ``j`` of i's cells, ``vmax[i]`` is extended by
     ``ρ_ij (sqrt((|u_j| + 2 c_j)² + 2 g max(Z_j - Z_i, 0)) - 2 c_i)`` (``c = sqrt(g h)``): the
     speed a flow from ``j`` can reach at ``i`` by expanding into shallower water (``u + 2c``
     is constant across a rarefaction) and falling down the bed. The weight
     ``ρ_ij = clip(2 h_j / h_i - 1, 0, 1)`` is 1 where j is at least as deep as i, 0 where it
     is less than half as deep and linear in between, so that thin fast nodes do not feed
-    each other's bounds, without a switch on ``h_j >= h_i`` (``ρ_ii = 1``).
+    each other's bounds, without a switch on ``h_j >= h_i``. A node with no neighbour at
+    least half as deep gets 0 here (then only the margin ``SPEED_MARGIN c_i``).
     """
     for k in range(cells.shape[0]):
         for a in range(4):
@@ -37,10 +38,10 @@ def deeper_patch_max(cells, speed, depth, z, g, vmax):
             hi = max(depth[i], 0.0)
             ci = np.sqrt(g * hi)
             for b in range(4):
-                j = cells[k, b]
-                hj = max(depth[j], 0.0)
                 if b == a:
                     continue
+                j = cells[k, b]
+                hj = max(depth[j], 0.0)
                 if hj >= hi:
                     rho = 1.0
                 else:

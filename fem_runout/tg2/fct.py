@@ -76,8 +76,8 @@ def flux_sums(cells, flux, source, pplus, pminus):
 
 
 @numba.njit(cache=True)
-def limit_pairs(cells, flux, source, rplus, rminus, cap, out_flux, out):
-    """Limited fluxes ``f*`` (into ``out_flux``) and their nodal sums (added to ``out``).
+def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
+    """Nodal sums of the limited fluxes ``f*`` and sources (added to ``out``).
 
     ``f*_ij = min(cap_i, cap_j, R⁺_i, R⁻_j) f_ij`` if ``f_ij > 0`` else ``min(cap_i, cap_j,
     R⁻_i, R⁺_j) f_ij``; a source at i gets ``min(cap_i, R^±_i)``. ``cap`` all ones is plain
@@ -97,7 +97,6 @@ def limit_pairs(cells, flux, source, rplus, rminus, cap, out_flux, out):
                 f *= min(c, min(rplus[i], rminus[j]))
             else:
                 f *= min(c, min(rminus[i], rplus[j]))
-            out_flux[k, p] = f
             out[i] += f
             out[j] -= f
 
@@ -144,6 +143,13 @@ def patch_extrema(cells, values, vmax, vmin):
 
 
 @numba.njit(cache=True)
+def hydrostatic_candidate(h_i, z_i, h_j, z_j):
+    """Depth that j's state allows at i, ``h_i + h*_ji - h*_ij`` (see :func:`depth_candidates`)."""
+    top = max(z_i, z_j)
+    return h_i + max(0.0, h_j + z_j - top) - max(0.0, h_i + z_i - top)
+
+
+@numba.njit(cache=True)
 def depth_candidates(cells, h, z, vmax, vmin):
     """Extend the depth bounds of every node by the hydrostatic candidates of its patch.
 
@@ -157,11 +163,9 @@ def depth_candidates(cells, h, z, vmax, vmin):
     for k in range(cells.shape[0]):
         for a in range(4):
             i = cells[k, a]
-            eta_i = h[i] + z[i]
             for b in range(4):
                 j = cells[k, b]
-                top = max(z[i], z[j])
-                c = h[i] + max(0.0, h[j] + z[j] - top) - max(0.0, eta_i - top)
+                c = hydrostatic_candidate(h[i], z[i], h[j], z[j])
                 vmax[i] = max(vmax[i], c)
                 vmin[i] = min(vmin[i], c)
 
@@ -195,7 +199,7 @@ def limit_serial(
     flux_sums(cells, flux, source, pplus, pminus)
     rplus, rminus = zalesak_ratios(pplus, pminus, mass * (u_max - u_low), mass * (u_min - u_low))
     out = np.zeros_like(u_low)
-    limit_pairs(cells, flux, source, rplus, rminus, np.ones_like(u_low), np.empty((n, 6)), out)
+    limit_pairs(cells, flux, source, rplus, rminus, np.ones_like(u_low), out)
     return out
 
 
@@ -228,11 +232,9 @@ def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
                 mx_lo = min(mx_lo, qx[i])
                 my_hi = max(my_hi, qy[i])
                 my_lo = min(my_lo, qy[i])
-                eta_i = h[i] + z[i]
                 for b in range(4):
                     j = cells[k, b]
-                    top = max(z[i], z[j])
-                    c = h[i] + max(0.0, h[j] + z[j] - top) - max(0.0, eta_i - top)
+                    c = hydrostatic_candidate(h[i], z[i], h[j], z[j])
                     hi[0, i] = max(hi[0, i], c)
                     lo[0, i] = min(lo[0, i], c)
             for a in range(4):

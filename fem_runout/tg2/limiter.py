@@ -143,7 +143,7 @@ class Limiter:
         sums = d.nodal_sum(sums)
         rplus, rminus = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
         out = np.zeros(qplus.shape[0])
-        fct.limit_pairs(self.owned, flux, source, rplus, rminus, cap, np.empty_like(flux), out)
+        fct.limit_pairs(self.owned, flux, source, rplus, rminus, cap, out)
         floor = d.lumped_mass * self.kappa * RATIO_FLOOR
         soft = np.minimum(
             np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),

@@ -44,7 +44,7 @@ def bank_drop(h, drop, delta):
 
 
 @numba.njit(cache=True)
-def nodal_velocity(h, qx, qy, tol, kappa, ux, uy):  # noqa: D103 - documented in velocity()
+def nodal_velocity(h, qx, qy, kappa, ux, uy):  # noqa: D103 - documented in velocity()
     for i in range(h.shape[0]):
         hp = max(h[i], 0.0)
         hk = max(h[i], kappa)
@@ -53,14 +53,14 @@ def nodal_velocity(h, qx, qy, tol, kappa, ux, uy):  # noqa: D103 - documented in
         uy[i] = qy[i] * f
 
 
-def velocity(h, qx, qy, tol: float, kappa: float, ux, uy) -> None:
+def velocity(h, qx, qy, kappa: float, ux, uy) -> None:
     """Nodal velocity, desingularised: ``u = 2 h q / (h² + max(h, κ)²)`` (= q/h for h >= κ).
 
     Written into ``ux``, ``uy``. Kurganov & Petrova (2007): a draining layer keeps a bounded
     velocity instead of ``q / h → ∞``; the formula is Lipschitz in (h, q) down to h = 0 (no
-    dry mask, ``tol`` is unused and kept for the signature).
+    dry mask).
     """
-    nodal_velocity(h, qx, qy, tol, kappa, ux, uy)
+    nodal_velocity(h, qx, qy, kappa, ux, uy)
 
 
 PAIRS = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)

@@ -27,7 +27,6 @@ from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
     cell_means,
     low_order_pass,
-    pair_coefficients,
     reconstructed_surface,
     velocity,
 )
@@ -100,7 +99,7 @@ class Transport:
         self._cap = np.zeros(nn)
         self._owned = disc.cell_nodes[:no]
         self._cellC = np.ascontiguousarray(disc.C[:no])
-        self._beta = pair_coefficients(self._cellC)
+        self._beta = self.limiter.beta_all[:no]  # owned cells come first
         self._means, self._eta_mean = np.empty((nc, 3)), np.empty(nc)
         self._cell_eta = np.empty((nc, 4))
         self._fresh = False  # low-order rates of the current state are in self._lo
@@ -161,7 +160,7 @@ class Transport:
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L (self._lo) and capacities (self._cap) of the state."""
         h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
-        velocity(h, hu, hv, self.tol, self.kappa, self.ux.x.array, self.uy.x.array)
+        velocity(h, hu, hv, self.kappa, self.ux.x.array, self.uy.x.array)
         self._cap[:] = 0.0
         low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
                        self.uy.x.array, self.g, self.kappa, self._lo, self._cap)
@@ -261,7 +260,7 @@ class Transport:
         """Scale back momenta above the patch speed bound (:func:`.bounds.bound_speed`)."""
         ux, uy = np.empty(q.shape[0]), np.empty(q.shape[0])
         velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
-                 np.ascontiguousarray(q_low[:, 2]), self.tol, self.kappa, ux, uy)
+                 np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
         bounds.bound_speed(self.disc.cell_nodes, self.reducer, q_low, q, self.z.x.array, self.g,
                            np.hypot(ux, uy))
 
