@@ -15,6 +15,8 @@ import ufl
 from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
+from fem_runout import cellsum
+
 SIDES = ("left", "right", "bottom", "top")
 _NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
 
@@ -71,6 +73,7 @@ class Discretization:
     lumped_mass: np.ndarray
     coords: np.ndarray
     sides: list[Side]
+    slot: np.ndarray | None = None
 
     @property
     def spacing(self) -> tuple[float, float]:
@@ -93,6 +96,32 @@ class Discretization:
         vec.scatter_reverse(la.InsertMode.add)
         vec.scatter_forward()
         return vec.array.reshape(values.shape).copy()
+
+    def cell_sum(self, contrib: np.ndarray) -> np.ndarray:
+        """``Σ_K contrib[K, a]`` per node over the owned cells, the same bits on any partition.
+
+        Args:
+            contrib: (n_owned_cells, 4) or (n_owned_cells, 4, bs) per cell and node.
+
+        Returns:
+            (n_nodes_local,) or (n_nodes_local, bs), owned and ghost entries filled
+            (:mod:`fem_runout.cellsum`).
+        """
+        n = self.n_owned_cells
+        bs = 1 if contrib.ndim == 2 else contrib.shape[2]
+        nn = self.coords.shape[0]
+        buf = np.zeros((nn, 4, bs))
+        cellsum.place(self.cell_nodes[:n], self.slot[:n],
+                      np.ascontiguousarray(contrib.reshape(n, 4, bs)), buf)
+        if self.comm.size > 1:
+            vec = self._vector(4 * bs)
+            vec.array[:] = buf.reshape(-1)
+            vec.scatter_reverse(la.InsertMode.add)  # each slot has one non-zero: exact
+            vec.scatter_forward()
+            buf = vec.array.reshape(nn, 4, bs)
+        out = np.empty((nn, bs))
+        cellsum.total(buf, out)
+        return out[:, 0] if contrib.ndim == 2 else out
 
     def update_ghosts(self, values: np.ndarray) -> None:
         """Copy owned values to the ghost entries of ``values`` (in place)."""
@@ -139,6 +168,11 @@ def build_discretization(
     n_cells = cmap.size_local + cmap.num_ghosts
     cell_nodes = np.asarray(V.dofmap.list[:n_cells], dtype=np.int64)
     coords = V.tabulate_dof_coordinates()[:, :2].copy()
+    # snapped to the grid formula: tabulated coordinates are pushed forward from whichever
+    # cell a rank holds and differ in the last bit between partitions
+    for axis, (lo, n) in enumerate(((xmin, cells[0]), (ymin, cells[1]))):
+        step = ((xmax - xmin) if axis == 0 else (ymax - ymin)) / n
+        coords[:, axis] = lo + np.rint((coords[:, axis] - lo) / step) * step
     C, phi_int, area = _cell_integrals(coords[cell_nodes])
     disc = Discretization(
         comm=comm, mesh=msh, V=V, extent=tuple(map(float, extent)), cells=tuple(cells),
@@ -146,10 +180,8 @@ def build_discretization(
         cell_nodes=cell_nodes, C=C, cell_area=area, lumped_mass=np.empty(0), coords=coords,
         sides=[],
     )
-    owned = slice(0, cmap.size_local)
-    mass = np.zeros(coords.shape[0])
-    np.add.at(mass, cell_nodes[owned].ravel(), phi_int[owned].ravel())
-    disc.lumped_mass = disc.nodal_sum(mass)
+    disc.slot = cellsum.cell_slots(coords[cell_nodes])
+    disc.lumped_mass = disc.cell_sum(phi_int[: cmap.size_local])
     disc.sides = [_side(disc, name, boundary.get(name, "open")) for name in SIDES]
     return disc
 
@@ -230,6 +262,45 @@ class GhostReducer:
         ufunc = np.maximum if op == "max" else np.minimum
         ufunc.at(values, self.recv_local, recv)
         self.disc.update_ghosts(values)
+
+
+def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure | None], ...]:
+    """``(dS, ds_open)`` restricted to the vertical facets, then to the horizontal ones.
+
+    A node of a cell lies on exactly one vertical and one horizontal edge of that cell, so a
+    form with the cell integrals and the vertical facets, and one with the horizontal facets,
+    each give every discontinuous-Q1 dof at most one facet term: their sums (also across
+    ranks) are a single addition, the same bits on any partition (:mod:`fem_runout.cellsum`).
+    ``ds_open`` is None when every side is a wall. Tags: 1/2 vertical/horizontal facets,
+    3/4 vertical/horizontal facets of the open sides.
+    """
+    xmin, xmax, ymin, ymax = disc.extent
+    dx, dy = disc.spacing
+    msh = disc.mesh
+    fdim = msh.topology.dim - 1
+    msh.topology.create_entities(fdim)
+    msh.topology.create_connectivity(fdim, fdim + 1)
+    fmap = msh.topology.index_map(fdim)
+    facets = np.arange(fmap.size_local + fmap.num_ghosts, dtype=np.int32)
+    mid = mesh.compute_midpoints(msh, fdim, facets)
+    fx = (mid[:, 0] - xmin) / dx
+    vertical = np.abs(fx - np.round(fx)) < 0.25
+    values = np.where(vertical, 1, 2).astype(np.int32)
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
+    open_sides = [s.name for s in disc.sides if s.kind == "open"]
+    for name in open_sides:
+        axis, value = where[name]
+        values[np.abs(mid[:, axis] - value) < tol] += 2
+    tags = mesh.meshtags(msh, fdim, facets, values)
+    md = {"quadrature_degree": 1}
+    out = []
+    for k in (1, 2):
+        dS = ufl.Measure("dS", domain=msh, subdomain_data=tags, subdomain_id=k, metadata=md)
+        ds = (ufl.Measure("ds", domain=msh, subdomain_data=tags, subdomain_id=k + 2,
+                          metadata=md) if open_sides else None)
+        out.append((dS, ds))
+    return tuple(out)
 
 
 def open_boundary_measure(disc: Discretization):

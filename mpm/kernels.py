@@ -18,9 +18,18 @@ __all__ = ["P2G_COLUMNS", "g2p", "interpolate", "interpolate_gradient", "p2g", "
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
 
 
+@numba.njit(cache=True, inline="always")
+def _deposit(out, i, c, x, ext):
+    """Add ``x`` to node ``i``, column ``c`` in two folds (see :mod:`mpm.exact_sum`)."""
+    hi = (x + ext[c, 0]) - ext[c, 0]
+    out[i, c, 0] += hi
+    x -= hi
+    out[i, c, 1] += (x + ext[c, 1]) - ext[c, 1]
+
+
 @numba.njit(cache=True)
-def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n_nodes):
-    """Particle-to-grid sums (seed eqs. 33-34).
+def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n_nodes, ext):
+    """Particle-to-grid sums (seed eqs. 33-34), as exact two-fold partial sums.
 
     Args:
         nodes: (n, k) node indices of each particle.
@@ -36,36 +45,38 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
         sxy: xy entry of the force tensor [N m].
         area: ``A_p`` [m²].
         volume: ``V_p`` [m³].
-        n_nodes: Number of local nodes.
+        n_nodes: Number of nodes.
+        ext: (7, 2) extractors of the two folds per column (:func:`mpm.exact_sum.extractors`).
 
     Returns:
-        (n_nodes, 7) nodal sums in the order of :data:`P2G_COLUMNS`.
+        (n_nodes, 7, 2) fold sums in the order of :data:`P2G_COLUMNS`; their sum over ranks
+        and folds (:meth:`mpm.nodal.NodalGrid.exact_sum`) does not depend on the order.
     """
-    out = np.zeros((n_nodes, 7))
+    out = np.zeros((n_nodes, 7, 2))
     for p in range(nodes.shape[0]):
         for k in range(nodes.shape[1]):
             i = nodes[p, k]
             w = N[p, k]
             gx, gy = dN[p, k, 0], dN[p, k, 1]
-            out[i, 0] += mass[p] * w
-            out[i, 1] += mass[p] * u[p] * w
-            out[i, 2] += mass[p] * v[p] * w
-            out[i, 3] += body_x[p] * w + sxx[p] * gx + sxy[p] * gy
-            out[i, 4] += body_y[p] * w + sxy[p] * gx + syy[p] * gy
-            out[i, 5] += area[p] * w
-            out[i, 6] += volume[p] * w
+            _deposit(out, i, 0, mass[p] * w, ext)
+            _deposit(out, i, 1, mass[p] * u[p] * w, ext)
+            _deposit(out, i, 2, mass[p] * v[p] * w, ext)
+            _deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
+            _deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
+            _deposit(out, i, 5, area[p] * w, ext)
+            _deposit(out, i, 6, volume[p] * w, ext)
     return out
 
 
 @numba.njit(cache=True)
-def p2g_momentum(nodes, N, mass, u, v, n_nodes):
-    """Nodal momentum ``Σ_p m_p v_p N_i`` only, (n_nodes, 2) (the MUSL re-mapping)."""
-    out = np.zeros((n_nodes, 2))
+def p2g_momentum(nodes, N, mass, u, v, n_nodes, ext):
+    """Nodal momentum ``Σ_p m_p v_p N_i`` only, (n_nodes, 2, 2) folds (the MUSL re-mapping)."""
+    out = np.zeros((n_nodes, 2, 2))
     for p in range(nodes.shape[0]):
         for k in range(nodes.shape[1]):
             i = nodes[p, k]
-            out[i, 0] += mass[p] * u[p] * N[p, k]
-            out[i, 1] += mass[p] * v[p] * N[p, k]
+            _deposit(out, i, 0, mass[p] * u[p] * N[p, k], ext)
+            _deposit(out, i, 1, mass[p] * v[p] * N[p, k], ext)
     return out
 
 

@@ -58,6 +58,16 @@ class NodalGrid:
             self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.SUM)
         return local
 
+    def exact_sum(self, folds: np.ndarray) -> np.ndarray:
+        """Sum two-fold partial sums (..., 2) over the ranks, then the folds (collective).
+
+        The folds' sums are exact (:mod:`mpm.exact_sum`), so the result has the same bits
+        whatever the split of the particles between ranks and their order.
+        """
+        if self.comm.size > 1:
+            self.comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
+        return folds[..., 0] + folds[..., 1]
+
     def to_global(self, values: np.ndarray) -> np.ndarray:
         """Global array of a local nodal array (owned entries; collective)."""
         out = np.zeros(self.n_nodes)

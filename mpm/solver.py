@@ -34,6 +34,7 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
+from mpm.exact_sum import extractors
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
 from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
@@ -214,8 +215,11 @@ class MPMSolver:
         carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
         """
         p, b = self.particles, self._basis
-        mom = self.nodal.sum(p2g_momentum(b.nodes, b.N, self.rho * p.volume, p.u, p.v,
-                                          self.nodal.n_nodes))
+        mass = self.rho * p.volume
+        ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
+                         self.comm)
+        mom = self.nodal.exact_sum(p2g_momentum(b.nodes, b.N, mass, p.u, p.v,
+                                                self.nodal.n_nodes, ext))
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
         vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
@@ -271,9 +275,11 @@ class MPMSolver:
                                                        g.ny, g.dx, g.dy))
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
-        self._nodal = self.nodal.sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1],
-                                         tensor[0], tensor[1], tensor[2], p.area, p.volume,
-                                         self.nodal.n_nodes))
+        ext = extractors(_p2g_bounds(b, mass, p, body, tensor), self.splitter.next_id,
+                         self.comm)
+        self._nodal = self.nodal.exact_sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0],
+                                               body[1], tensor[0], tensor[1], tensor[2],
+                                               p.area, p.volume, self.nodal.n_nodes, ext))
         self._h = h = self.projector.project(self._nodal[:, 6:7])[:, 0]
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
@@ -297,3 +303,17 @@ class MPMSolver:
         body = (-weight * grad_z[:, 0], -weight * grad_z[:, 1])
         tensor = (pressure - p.volume * p.sxx, pressure - p.volume * p.syy, -p.volume * p.sxy)
         return body, tensor
+
+
+def _amax(values: np.ndarray) -> float:
+    """Largest absolute value (0 for none)."""
+    return float(np.max(np.abs(values), initial=0.0))
+
+
+def _p2g_bounds(b: Basis, mass: np.ndarray, p: Particles, body, tensor) -> list[float]:
+    """Bounds of any P2G contribution per column (weights <= 1, gradients <= max |dN|)."""
+    grad = _amax(b.dN)
+    sxx, syy, sxy = (_amax(t) for t in tensor)
+    return [_amax(mass), _amax(mass * p.u), _amax(mass * p.v),
+            _amax(body[0]) + (sxx + sxy) * grad, _amax(body[1]) + (sxy + syy) * grad,
+            _amax(p.area), _amax(p.volume)]

@@ -128,16 +128,20 @@ well-balancing; both pass every hard case.
   spacing, on an alias-free uniform lattice, give the first-order convergence above.
 - 1, 2 and 3 ranks: the largest relative difference of the error between the 1-rank run and
   the runs on more ranks over every ladder above is {mpm_rank_spread} for DAMPM,
-  {tg2_rank_spread} for TG2-PC. Before issue 13 TG2-PC's spread reached 4.5e-2 (Mangeney at
-  400×2): its element-based Zalesak factors (one per cell, a min over nodes of ratios of small
-  sums) and the wet/dry and "deeper neighbour" switches around them amplified a last-bit
-  difference of a sum into an O(1) change (a 1e-15 perturbation of the initial depth grew to
-  2e-2 m on the Voellmy sheet). The limiter is now edge-based and every bound and mask is
-  continuous (docs/method.md, "Continuity in the data"); `tests/test_continuity.py` checks
-  that a 1e-14 perturbation moves the result by at most 1e-9. Before points below the dry
-  tolerance stopped getting particles, near-massless shoreline particles (V ~ 1e-20 m³,
-  erratic FLIP velocities) set DAMPM's time step on Thacker's bowl and the two periods
-  differed by 27 % at 40×40.
+  {tg2_rank_spread} for TG2-PC. Both methods compute the same bits on any rank count
+  (the states are identical, `tests/mpi`; an error's last bit can still differ because the
+  error is summed over the gathered nodes in gather order): TG2-PC sums cell contributions
+  into one slot per cell corner (`fem_runout/cellsum.py`) and splits the corrector's facet
+  terms by orientation, DAMPM sums particle contributions in exact two-fold pre-rounded
+  sums (`mpm/exact_sum.py`), and node coordinates follow the grid formula. Before, a
+  last-bit difference of a sum grew into 1.6e-3 on Thacker's bowl after two periods (the
+  moving shoreline amplifies round-off: 1e-14 → 2e-4 at 80×80) and to 1.1e-7 for DAMPM
+  (Stoker 100:1); before issue 13 TG2-PC's element-based Zalesak factors and the switches
+  around them gave 4.5e-2 (Mangeney at 400×2). `tests/test_continuity.py` checks that a
+  1e-14 perturbation of the data moves the result by at most 1e-9 (docs/method.md,
+  "Continuity in the data"). Before points below the dry tolerance stopped getting
+  particles, near-massless shoreline particles (V ~ 1e-20 m³, erratic FLIP velocities) set
+  DAMPM's time step on Thacker's bowl and the two periods differed by 27 % at 40×40.
 
 **Seed Table 1.** Our relative front errors (exact dry-bed tip as reference) are larger than
 the paper's ({dam_last:.3f} at 11 s on the finest grid against 0.0121) and shrink slowly with the

@@ -163,6 +163,8 @@ def run_driver(args: argparse.Namespace) -> int:
         m: _launch(["--worker", "hard", "--method", m], 1, args.timeout) for m in _methods(args)}
     total = time.perf_counter() - start
     raw = {"results": results, "hard": hard, "total": total}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.figures.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(raw, indent=1))
     text = suite_report.write(benches, results, hard, args.out, args.figures, total)
     print(f"wrote {args.out} ({len(text)} characters) in {total:.0f} s", flush=True)

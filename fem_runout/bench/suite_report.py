@@ -201,8 +201,12 @@ def reading(results: dict) -> str:
         mpm_thacker_orders=_orders_text(results, "thacker", method="mpm"),
         mpm_shear_orders=_orders_text(results, "shear_decay", method="mpm"),
         mpm_dam_front=last("dam_break", "front_11", method="mpm"),
-        mpm_rank_spread="{:.1e} ({})".format(*rank_spread(results, "mpm")),
-        tg2_rank_spread="{:.1e} ({})".format(*rank_spread(results, "tg2")))
+        mpm_rank_spread=_spread_text(*rank_spread(results, "mpm")),
+        tg2_rank_spread=_spread_text(*rank_spread(results, "tg2")))
+
+
+def _spread_text(worst: float, where: str) -> str:
+    return "0 (identical errors)" if worst == 0.0 else f"{worst:.1e} ({where})"
 
 
 def write(benches: list[Benchmark], results: dict, hard: dict[str, Rows], out: Path,

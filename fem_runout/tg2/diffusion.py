@@ -30,7 +30,7 @@ import basix
 import basix.ufl
 import numpy as np
 import ufl
-from dolfinx import fem, la
+from dolfinx import fem
 from mpi4py import MPI
 
 from fem_runout.integrators.rkc import IMEXRKC
@@ -76,11 +76,15 @@ class DiffusionReaction:
         P0 = fem.functionspace(msh, ("DG", 0))
         self.nu = fem.Function(P0)  # ν_K = μ_eff / ρ
         self.hmin = fem.Function(P0)  # smallest nodal depth of the cell
-        w = ufl.TestFunction(Vv)
+        # tested with discontinuous Q1: per cell and node, summed by Discretization.cell_sum
+        # (the same bits on any partition)
+        Wd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1, shape=(2,)))
+        w = ufl.TestFunction(Wd)
         eps = ufl.sym(ufl.grad(self.u))
         dx = ufl.dx(metadata={"quadrature_degree": 2})
         self.form = fem.form(-ufl.inner(2.0 * self.hmin * self.nu * eps, ufl.grad(w)) * dx)
         self.vec = fem.assemble_vector(self.form)
+        self._dofd = np.asarray(Wd.dofmap.list[: d.n_owned_cells], dtype=np.int64)
         nc = d.cell_nodes.shape[0]
         self._nu_dofs = np.asarray(self.nu.function_space.dofmap.list[:nc, 0])
         xc = d.coords[d.cell_nodes]
@@ -101,9 +105,8 @@ class DiffusionReaction:
         self.u.x.array[:] = self._velocity(q).reshape(-1)
         self.vec.array[:] = 0.0
         fem.assemble_vector(self.vec.array, self.form)
-        self.vec.scatter_reverse(la.InsertMode.add)
-        self.vec.scatter_forward()
-        return self.vec.array.reshape(-1, 2) / d.lumped_mass[:, None]
+        per_cell = self.vec.array.reshape(-1, 2)[self._dofd]
+        return d.cell_sum(per_cell) / d.lumped_mass[:, None]
 
     def update_viscosity(self, q: np.ndarray) -> float:
         """Set ν_K = μ_eff/ρ per cell from the state; return σ_J (Gershgorin, collective)."""
@@ -119,10 +122,8 @@ class DiffusionReaction:
         self.nu.x.array[self._nu_dofs] = nu
         self.hmin.x.array[self._nu_dofs] = np.maximum(h[cells].min(axis=1), 0.0)
         no = d.n_owned_cells
-        rows = np.zeros(h.shape[0])
         # |∂F_D,i/∂q_j| <= (1/m_i) Σ_K 2 ν_K h_min,K |∂u_j/∂q_j| · 2 |S_ij|, h_min ∂u/∂q <= 2
-        np.add.at(rows, cells[:no].ravel(), (8.0 * nu[:no, None] * self._stiff_rows[:no]).ravel())
-        rows = d.nodal_sum(rows)
+        rows = d.cell_sum(8.0 * nu[:no, None] * self._stiff_rows[:no])
         own = slice(0, d.n_owned_nodes)
         local = float(np.max(rows[own] / d.lumped_mass[own])) if d.n_owned_nodes else 0.0
         return d.comm.allreduce(local, op=MPI.MAX)

@@ -53,31 +53,36 @@ def split_pairs(aec, flux, source):
 
 
 @numba.njit(cache=True)
-def flux_sums(cells, flux, source, pplus, pminus):
-    """Add the positive/negative pair fluxes and sources into ``P^±`` per node."""
-    for k in range(cells.shape[0]):
+def flux_sums(flux, source, out):
+    """Positive/negative pair fluxes and sources per cell and node: ``out[K, a] = (P⁺, P⁻)``.
+
+    Summed over the cells by :meth:`fem_runout.mesh.Discretization.cell_sum` (the same bits
+    on any partition).
+    """
+    for k in range(flux.shape[0]):
         mu = source[k]
         for a in range(4):
-            i = cells[k, a]
             if mu > 0.0:
-                pplus[i] += mu
+                out[k, a, 0] = mu
+                out[k, a, 1] = 0.0
             else:
-                pminus[i] += mu
+                out[k, a, 0] = 0.0
+                out[k, a, 1] = mu
         for p in range(6):
             f = flux[k, p]
-            i = cells[k, PAIRS[p, 0]]
-            j = cells[k, PAIRS[p, 1]]
+            a = PAIRS[p, 0]
+            b = PAIRS[p, 1]
             if f > 0.0:
-                pplus[i] += f
-                pminus[j] -= f
+                out[k, a, 0] += f
+                out[k, b, 1] -= f
             else:
-                pminus[i] += f
-                pplus[j] -= f
+                out[k, a, 1] += f
+                out[k, b, 0] -= f
 
 
 @numba.njit(cache=True)
 def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
-    """Nodal sums of the limited fluxes ``f*`` and sources (added to ``out``).
+    """Limited fluxes ``f*`` and sources per cell and node (``out[K, a]``, overwritten).
 
     ``f*_ij = min(cap_i, cap_j, R⁺_i, R⁻_j) f_ij`` if ``f_ij > 0`` else ``min(cap_i, cap_j,
     R⁻_i, R⁺_j) f_ij``; a source at i gets ``min(cap_i, R^±_i)``. ``cap`` all ones is plain
@@ -87,18 +92,20 @@ def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
         mu = source[k]
         for a in range(4):
             i = cells[k, a]
-            out[i] += mu * min(cap[i], rplus[i] if mu > 0.0 else rminus[i])
+            out[k, a] = mu * min(cap[i], rplus[i] if mu > 0.0 else rminus[i])
         for p in range(6):
-            i = cells[k, PAIRS[p, 0]]
-            j = cells[k, PAIRS[p, 1]]
+            a = PAIRS[p, 0]
+            b = PAIRS[p, 1]
+            i = cells[k, a]
+            j = cells[k, b]
             f = flux[k, p]
             c = min(cap[i], cap[j])
             if f > 0.0:
                 f *= min(c, min(rplus[i], rminus[j]))
             else:
                 f *= min(c, min(rminus[i], rplus[j]))
-            out[i] += f
-            out[j] -= f
+            out[k, a] += f
+            out[k, b] -= f
 
 
 def zalesak_ratios(
@@ -194,23 +201,17 @@ def limit_serial(
     n = cells.shape[0]
     flux, source = np.empty((n, 6)), np.empty(n)
     split_pairs(np.ascontiguousarray(aec), flux, source)
-    pplus = np.zeros_like(u_low)
-    pminus = np.zeros_like(u_low)
-    flux_sums(cells, flux, source, pplus, pminus)
-    rplus, rminus = zalesak_ratios(pplus, pminus, mass * (u_max - u_low), mass * (u_min - u_low))
+    per_cell = np.empty((n, 4, 2))
+    flux_sums(flux, source, per_cell)
+    sums = np.zeros((u_low.shape[0], 2))
+    np.add.at(sums, cells.ravel(), per_cell.reshape(-1, 2))
+    rplus, rminus = zalesak_ratios(sums[:, 0], sums[:, 1], mass * (u_max - u_low),
+                                   mass * (u_min - u_low))
+    limited = np.empty((n, 4))
+    limit_pairs(cells, flux, source, rplus, rminus, np.ones_like(u_low), limited)
     out = np.zeros_like(u_low)
-    limit_pairs(cells, flux, source, rplus, rminus, np.ones_like(u_low), out)
+    np.add.at(out, cells.ravel(), limited.ravel())
     return out
-
-
-@numba.njit(cache=True)
-def scatter_cells(cells, contrib, out):
-    """``out[i, c] += contrib[K, a, c]`` for node ``i = cells[K, a]``."""
-    for k in range(cells.shape[0]):
-        for a in range(4):
-            i = cells[k, a]
-            for c in range(contrib.shape[2]):
-                out[i, c] += contrib[k, a, c]
 
 
 @numba.njit(cache=True)

@@ -74,10 +74,15 @@ def corrector_form(
     g: fem.Constant,
     dry: fem.Constant,
     z: fem.Function,
-    ds_open: ufl.Measure | None,
+    measures: tuple[tuple[ufl.Measure, ufl.Measure | None], ...],
     spacing: tuple[float, float] = (1.0, 1.0),
-) -> fem.Form:
-    """Linear form of the high-order corrector element contributions (eqs. 10–12).
+) -> list[fem.Form]:
+    """Linear forms of the high-order corrector element contributions (eqs. 10–12).
+
+    One form per ``(dS, ds_open)`` pair of ``measures`` (:func:`fem_runout.mesh.facet_measures`:
+    vertical, then horizontal facets); the cell integrals go into the first. Their sum is the
+    corrector; split this way every dof gets one facet term per form, so the assembled sums
+    do not depend on the partition.
 
     Args:
         cell_state: DG0 (h, hu, hv) at t^{n+1/2}.
@@ -88,7 +93,7 @@ def corrector_form(
         g: Gravity.
         dry: Depth δ of the wet weight ``min(1, h/δ)`` (the thin depth κ).
         z: Q1 bed elevation (for the ghost state of open boundaries).
-        ds_open: Measure of the open boundary facets, or None if there are none.
+        measures: ``(dS, ds_open)`` pairs; ``ds_open`` None where no side is open.
         spacing: Cell size (dx, dy) of the structured grid.
 
     On an open side the ghost cell continues the bed with its slope (zero-gradient depth and
@@ -114,12 +119,14 @@ def corrector_form(
     fluct = g * 0.5 * (hp + hm) * (em_eff - ep_eff)
     psi_m = ufl.as_vector([psi[1], psi[2]])
     dx = ufl.dx(metadata={"quadrature_degree": 1})
-    dS = ufl.dS(metadata={"quadrature_degree": 1})
-    cell = ufl.inner(flux, ufl.grad(psi)) * dx
-    edge = fluct * ufl.dot(n("+"), 0.5 * (psi_m("+") + psi_m("-"))) * dS
-    form = dt * cell - dt * edge
-    if ds_open is not None:
-        normal_size = abs(n[0]) * spacing[0] + abs(n[1]) * spacing[1]
-        jump = ufl.dot(ufl.grad(z), n) * normal_size
-        form = form - dt * 0.5 * g * hk * jump * ufl.dot(n, psi_m) * ds_open
-    return fem.form(form)
+    normal_size = abs(n[0]) * spacing[0] + abs(n[1]) * spacing[1]
+    jump = ufl.dot(ufl.grad(z), n) * normal_size
+    forms = []
+    for k, (dS, ds_open) in enumerate(measures):
+        form = -dt * fluct * ufl.dot(n("+"), 0.5 * (psi_m("+") + psi_m("-"))) * dS
+        if k == 0:
+            form = dt * ufl.inner(flux, ufl.grad(psi)) * dx + form
+        if ds_open is not None:
+            form = form - dt * 0.5 * g * hk * jump * ufl.dot(n, psi_m) * ds_open
+        forms.append(fem.form(form))
+    return forms

@@ -67,6 +67,8 @@ class Limiter:
         self.thin_depth = 1e3 * self.kappa
         self.owned = disc.cell_nodes[: disc.n_owned_cells]
         self.beta_all = pair_coefficients(disc.C)  # owned and ghost cells: whole patches
+        n = self.owned.shape[0]
+        self._per_cell1, self._per_cell2 = np.empty((n, 4)), np.empty((n, 4, 2))
 
     def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
                    u: np.ndarray) -> np.ndarray:
@@ -138,14 +140,14 @@ class Limiter:
         floored at ``RATIO_FLOOR m κ``.
         """
         d = self.disc
-        sums = np.zeros((qplus.shape[0], 2))
-        fct.flux_sums(self.owned, flux, source, sums[:, 0], sums[:, 1])
-        sums = d.nodal_sum(sums)
+        per_cell = self._per_cell2
+        fct.flux_sums(flux, source, per_cell)
+        sums = d.cell_sum(per_cell)
         rplus, rminus = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
-        out = np.zeros(qplus.shape[0])
+        out = self._per_cell1
         fct.limit_pairs(self.owned, flux, source, rplus, rminus, cap, out)
         floor = d.lumped_mass * self.kappa * RATIO_FLOOR
         soft = np.minimum(
             np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),
             np.minimum(1.0, np.minimum(qminus, 0.0) / np.minimum(sums[:, 1], -floor)))
-        return d.nodal_sum(out), soft
+        return d.cell_sum(out), soft

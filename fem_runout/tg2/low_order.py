@@ -99,7 +99,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
         g: Gravity.
         tol: Depth δ of the wet weight (:func:`bank_drop`).
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
-        cap: (n_nodes,) ``Σ_j (d_ij + |β_ij·u_i|)`` is added here.
+        cap: (n, 4) ``Σ_j (d_ij + |β_ij·u_i|)`` per cell and node is added here.
     """
     for k in range(cells.shape[0]):
         nodes = cells[k]
@@ -143,8 +143,8 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
             out[k, b, 0] -= fm
             out[k, b, 1] -= fx
             out[k, b, 2] -= fy
-            cap[i] += d + abs(bu_i)
-            cap[j] += d + abs(bu_j)
+            cap[k, a] += d + abs(bu_i)
+            cap[k, b] += d + abs(bu_j)
 
 
 @numba.njit(cache=True)

@@ -20,8 +20,8 @@ import basix.ufl
 import numpy as np
 from dolfinx import fem, la
 
-from fem_runout.mesh import Discretization, GhostReducer, open_boundary_measure
-from fem_runout.tg2 import bounds, fct
+from fem_runout.mesh import Discretization, GhostReducer, facet_measures
+from fem_runout.tg2 import bounds
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
@@ -78,10 +78,10 @@ class Transport:
         self.pred_form = predictor_form(state, vel, self.eta_t, W0, self.dt, g)
         self.corr_form = corrector_form(
             self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, self.kappa), self.z,
-            open_boundary_measure(disc), disc.spacing,
+            facet_measures(disc), disc.spacing,
         )
         self.b_pred = fem.assemble_vector(self.pred_form)
-        self.b_corr = fem.assemble_vector(self.corr_form)
+        self.b_corr = [fem.assemble_vector(f) for f in self.corr_form]
         nc = disc.cell_nodes.shape[0]
         self._dof0 = np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64)
         if not np.array_equal(self._dof0, U0.dofmap.list[:nc, 0]):
@@ -94,9 +94,9 @@ class Transport:
         self.reducer = GhostReducer(disc)
         self.limiter = Limiter(disc, self.reducer, self.g, self.kappa)
         self.outflow_volume = 0.0
-        nn, no = disc.coords.shape[0], disc.n_owned_cells
+        no = disc.n_owned_cells
         self._lo = np.zeros((no, 4, 3))
-        self._cap = np.zeros(nn)
+        self._cap = np.zeros((no, 4))
         self._owned = disc.cell_nodes[:no]
         self._cellC = np.ascontiguousarray(disc.C[:no])
         self._beta = self.limiter.beta_all[:no]  # owned cells come first
@@ -126,7 +126,7 @@ class Transport:
 
         d = self.disc
         self._low_order_pass()
-        cap = d.nodal_sum(self._cap)
+        cap = d.cell_sum(self._cap)
         ux, uy = self.ux.x.array, self.uy.x.array
         for side in d.sides:
             if side.kind == "open":
@@ -189,9 +189,7 @@ class Transport:
             corr = self.limiter.correction(q0, q_low, aec, self.z.x.array,
                                            np.stack([self.ux.x.array, self.uy.x.array]))
         else:
-            corr = np.zeros_like(q0)
-            fct.scatter_cells(self._owned, aec, corr)
-            corr = d.nodal_sum(corr)
+            corr = d.cell_sum(aec)
         q_new = q_low + corr / d.lumped_mass[:, None]
         self._bound_speed(q_low, q_new)
         self._finalise(q_new)
@@ -218,10 +216,12 @@ class Transport:
         hk_pos = np.maximum(hk, 0.0)
         factor = 2.0 * hk_pos / (hk_pos**2 + np.maximum(hk, self.kappa) ** 2)
         self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
-        b = self.b_corr
-        b.array[:] = 0.0
-        fem.assemble_vector(b.array, self.corr_form)
-        b.scatter_reverse(la.InsertMode.add)
+        for vec, form in zip(self.b_corr, self.corr_form, strict=True):
+            vec.array[:] = 0.0
+            fem.assemble_vector(vec.array, form)
+            vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
+        b = self.b_corr[0]
+        b.array[:] += self.b_corr[1].array  # cell + vertical facets, then horizontal facets
         if isinstance(self._dofd, slice):
             return b.array.reshape(-1, 4, 3)[: d.n_owned_cells]
         return b.array.reshape(-1, 3)[self._dofd[: d.n_owned_cells]]
@@ -229,9 +229,7 @@ class Transport:
     def _low_order_rates(self, h, hu, hv) -> np.ndarray:
         """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i from self._lo."""
         d = self.disc
-        acc = np.zeros((h.shape[0], 3))
-        fct.scatter_cells(self._owned, self._lo, acc)
-        acc = d.nodal_sum(acc)
+        acc = d.cell_sum(self._lo)
         acc += self._boundary_flux(h, hu, hv)
         return acc / d.lumped_mass[:, None]
 
