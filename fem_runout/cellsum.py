@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cell_slots", "place", "total"]
+__all__ = ["cell_slots", "gather", "gather_total", "place", "sources", "total"]
 
 
 def cell_slots(xc: np.ndarray) -> np.ndarray:
@@ -57,3 +57,35 @@ def total(buf, out):
     for i in range(buf.shape[0]):
         for c in range(buf.shape[2]):
             out[i, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]
+
+
+def sources(cells: np.ndarray, slot: np.ndarray, n_nodes: int) -> np.ndarray:
+    """``src[i, s]`` = flat index ``4 K + a`` of the cell node filling slot ``s`` of node ``i``.
+
+    -1 where no cell of ``cells`` fills the slot.
+    """
+    src = np.full((n_nodes, 4), -1, dtype=np.int64)
+    src[cells.ravel(), slot.ravel()] = np.arange(cells.size, dtype=np.int64)
+    return src
+
+
+@numba.njit(cache=True)
+def gather(src, flat, buf):
+    """``buf[i, s, c] = flat[src[i, s], c]`` (0 where ``src`` is -1): the slots, one pass."""
+    for i in range(src.shape[0]):
+        for s in range(4):
+            j = src[i, s]
+            for c in range(flat.shape[1]):
+                buf[i, s, c] = flat[j, c] if j >= 0 else 0.0
+
+
+@numba.njit(cache=True)
+def gather_total(src, flat, out):
+    """:func:`gather` then :func:`total` without the buffer (one rank)."""
+    for i in range(src.shape[0]):
+        for c in range(flat.shape[1]):
+            acc = 0.0
+            for s in range(4):
+                j = src[i, s]
+                acc = acc + (flat[j, c] if j >= 0 else 0.0)
+            out[i, c] = acc

@@ -110,17 +110,20 @@ class Discretization:
         n = self.n_owned_cells
         bs = 1 if contrib.ndim == 2 else contrib.shape[2]
         nn = self.coords.shape[0]
-        buf = np.zeros((nn, 4, bs))
-        cellsum.place(self.cell_nodes[:n], self.slot[:n],
-                      np.ascontiguousarray(contrib.reshape(n, 4, bs)), buf)
-        if self.comm.size > 1:
+        src = self.__dict__.get("_src")
+        if src is None:
+            src = self.__dict__["_src"] = cellsum.sources(self.cell_nodes[:n], self.slot[:n], nn)
+        flat = np.ascontiguousarray(contrib.reshape(n * 4, bs))
+        out = np.empty((nn, bs))
+        if self.comm.size == 1:
+            cellsum.gather_total(src, flat, out)
+        else:
             vec = self._vector(4 * bs)
-            vec.array[:] = buf.reshape(-1)
+            buf = vec.array.reshape(nn, 4, bs)
+            cellsum.gather(src, flat, buf)
             vec.scatter_reverse(la.InsertMode.add)  # each slot has one non-zero: exact
             vec.scatter_forward()
-            buf = vec.array.reshape(nn, 4, bs)
-        out = np.empty((nn, bs))
-        cellsum.total(buf, out)
+            cellsum.total(buf, out)
         return out[:, 0] if contrib.ndim == 2 else out
 
     def update_ghosts(self, values: np.ndarray) -> None:

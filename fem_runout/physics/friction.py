@@ -193,9 +193,12 @@ class FrictionLaw:
         scale = r_abs + theta * g * self.mu * h * np.abs(n_i)
         for _ in range(NEWTON_MAX_ITER):
             res = x + a * x * x - r_abs
-            if np.all(np.abs(res) <= NEWTON_RTOL * scale):
+            todo = np.abs(res) > NEWTON_RTOL * scale
+            if not todo.any():
                 return np.where(active, sign * x, 0.0)
-            x = x - res / (1.0 + 2.0 * a * x)
+            # each node stops at its own convergence: its result does not depend on which
+            # other nodes share its rank (the same bits on any partition)
+            x = np.where(todo, x - res / (1.0 + 2.0 * a * x), x)
         raise FloatingPointError("friction Newton iteration did not converge")
 
 
