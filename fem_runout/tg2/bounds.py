@@ -32,11 +32,15 @@ def deeper_patch_max(cells, speed, depth, z, g, vmax):
     each other's bounds, without a switch on ``h_j >= h_i``. A node with no neighbour at
     least half as deep gets 0 here (then only the margin ``SPEED_MARGIN c_i``).
     """
+    n = depth.shape[0]
+    wave = np.empty(n)  # c = sqrt(g h) per node, once
+    for i in range(n):
+        wave[i] = np.sqrt(g * max(depth[i], 0.0))
     for k in range(cells.shape[0]):
         for a in range(4):
             i = cells[k, a]
             hi = max(depth[i], 0.0)
-            ci = np.sqrt(g * hi)
+            ci = wave[i]
             for b in range(4):
                 if b == a:
                     continue
@@ -46,10 +50,11 @@ def deeper_patch_max(cells, speed, depth, z, g, vmax):
                     rho = 1.0
                 else:
                     rho = max(0.0, 2.0 * hj / hi - 1.0)  # hi > hj >= 0 here
-                r = speed[j] + 2.0 * np.sqrt(g * hj)
+                r = speed[j] + 2.0 * wave[j]
                 drop = max(z[j] - z[i], 0.0)
-                vmax[i] = max(vmax[i], rho * max(np.sqrt(r * r + 2.0 * g * drop) - 2.0 * ci,
-                                                 0.0))
+                # sqrt(r²) = r exactly in binary floating point: skip it where the bed is flat
+                reach = np.sqrt(r * r + 2.0 * g * drop) if drop > 0.0 else r
+                vmax[i] = max(vmax[i], rho * max(reach - 2.0 * ci, 0.0))
 
 
 def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: np.ndarray,
