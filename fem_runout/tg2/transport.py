@@ -19,6 +19,7 @@ from __future__ import annotations
 import basix.ufl
 import numpy as np
 from dolfinx import fem, la
+from mpi4py import MPI
 
 from fem_runout.mesh import Discretization, GhostReducer, facet_measures
 from fem_runout.tg2 import bounds
@@ -122,8 +123,6 @@ class Transport:
         eigenvalues ``|u·n| + sqrt(g h)`` of the full system in ``d_ij``. The low-order rates of
         the same pass are kept for the next :meth:`step`.
         """
-        from mpi4py import MPI
-
         d = self.disc
         self._low_order_pass()
         cap = d.cell_sum(self._cap)
@@ -146,8 +145,6 @@ class Transport:
         one to a layer at rest on 40° (the ``Z`` slope is computed once, patch maximum of the
         cell-mean gradients).
         """
-        from mpi4py import MPI
-
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
         own = slice(0, self.disc.n_owned_nodes)
@@ -270,7 +267,8 @@ class Transport:
                 q[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
         # so that the runner stops with a message
-        hmax = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
+        local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
+        hmax = d.comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
         tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
         q[tiny, 0] = 0.0
         # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
