@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cell_slots", "gather", "gather_total", "place", "sources", "total"]
+__all__ = ["cell_slots", "gather", "gather_total", "sources", "total"]
 
 
 def cell_slots(xc: np.ndarray) -> np.ndarray:
@@ -38,17 +38,6 @@ def cell_slots(xc: np.ndarray) -> np.ndarray:
     if xc.shape[0] and not np.all(np.sort(slot, axis=1) == np.arange(4)):
         raise ValueError("cell nodes do not occupy four distinct corners")
     return slot
-
-
-@numba.njit(cache=True)
-def place(cells, slot, contrib, buf):
-    """``buf[i, s, c] = contrib[K, a, c]`` for node ``i = cells[K, a]``, ``s = slot[K, a]``."""
-    for k in range(cells.shape[0]):
-        for a in range(4):
-            i = cells[k, a]
-            s = slot[k, a]
-            for c in range(contrib.shape[2]):
-                buf[i, s, c] = contrib[k, a, c]
 
 
 @numba.njit(cache=True)

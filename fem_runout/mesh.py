@@ -81,22 +81,6 @@ class Discretization:
         xmin, xmax, ymin, ymax = self.extent
         return (xmax - xmin) / self.cells[0], (ymax - ymin) / self.cells[1]
 
-    def nodal_sum(self, values: np.ndarray) -> np.ndarray:
-        """Sum contributions to shared nodes across ranks (owned + ghost), in place result.
-
-        Args:
-            values: (n_nodes_local,) or (n_nodes_local, bs) local contributions.
-
-        Returns:
-            The same shape, with owned and ghost entries equal to the global sum.
-        """
-        bs = 1 if values.ndim == 1 else values.shape[1]
-        vec = self._vector(bs)
-        vec.array[:] = values.reshape(-1)
-        vec.scatter_reverse(la.InsertMode.add)
-        vec.scatter_forward()
-        return vec.array.reshape(values.shape).copy()
-
     def cell_sum(self, contrib: np.ndarray) -> np.ndarray:
         """``Σ_K contrib[K, a]`` per node over the owned cells, the same bits on any partition.
 
@@ -304,28 +288,3 @@ def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure
                           metadata=md) if open_sides else None)
         out.append((dS, ds))
     return tuple(out)
-
-
-def open_boundary_measure(disc: Discretization):
-    """``ds`` restricted to the facets of the open sides (None when every side is a wall)."""
-    xmin, xmax, ymin, ymax = disc.extent
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
-    open_sides = [s.name for s in disc.sides if s.kind == "open"]
-    if not open_sides:
-        return None
-    msh = disc.mesh
-    fdim = msh.topology.dim - 1
-
-    def on_open(x: np.ndarray) -> np.ndarray:
-        hit = np.zeros(x.shape[1], dtype=bool)
-        for name in open_sides:
-            axis, value = where[name]
-            hit |= np.abs(x[axis] - value) < tol
-        return hit
-
-    facets = mesh.locate_entities_boundary(msh, fdim, on_open)
-    tags = mesh.meshtags(msh, fdim, np.sort(facets).astype(np.int32),
-                         np.ones(len(facets), dtype=np.int32))
-    return ufl.Measure("ds", domain=msh, subdomain_data=tags, subdomain_id=1,
-                       metadata={"quadrature_degree": 1})

@@ -19,10 +19,15 @@ RNG = np.random.default_rng(13)
 
 
 def _cell_sum(cells, slot, contrib, n_nodes):
-    buf = np.zeros((n_nodes, 4, 1))
-    cellsum.place(cells, slot, contrib[:, :, None], buf)
-    out = np.empty((n_nodes, 1))
+    """Both paths of ``Discretization.cell_sum``: one rank, and slots then total (ranks)."""
+    src = cellsum.sources(cells, slot, n_nodes)
+    flat = np.ascontiguousarray(contrib.reshape(-1, 1))
+    direct, out = np.empty((n_nodes, 1)), np.empty((n_nodes, 1))
+    cellsum.gather_total(src, flat, direct)
+    buf = np.empty((n_nodes, 4, 1))
+    cellsum.gather(src, flat, buf)
     cellsum.total(buf, out)
+    assert np.array_equal(direct, out)
     return out[:, 0]
 
 
