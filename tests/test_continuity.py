@@ -28,9 +28,10 @@ PATHS = [CASES / f"{name}.yaml" for name in SHORT if name != "drop"] + hard_case
 
 #: (case, method) -> what is known; xfail(strict): the mark fails as soon as it passes.
 KNOWN = {
-    ("cliff", "mpm"): "DAMPM particle splitting is a switch (a domain longer than the limit "
-                      "splits in two): the change grows steadily, 1.2e-11 at 3 s, 3e-9 at "
-                      "4.5 s, 5e-6 at 6 s in the splash below the cliff",
+    ("cliff", "mpm"): "FLIP particle noise where particles pile up against the wall and the "
+                      "cliff foot grows the change exponentially (split decisions and counts "
+                      "stay equal): 1.2e-11 at 3 s, 5e-6 at 6 s; PIC gives 2.5e-13 "
+                      "(docs/limiter.md, Open)",
 }
 PARAMS = [pytest.param(path, method, id=f"{path.stem}-{method}",
                        marks=[pytest.mark.xfail(strict=True, reason=KNOWN[(path.stem, method)])]
