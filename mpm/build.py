@@ -10,6 +10,7 @@ from fem_runout.mesh import build_discretization
 from fem_runout.parallel import agree_on_errors
 from fem_runout.physics.friction import friction_from_spec
 from fem_runout.physics.rheology import rheology_from_spec
+from fem_runout.physics.slope import slope_geometry
 from fem_runout.tg2.solver import initial_fields, resolved_thin_depth
 from mpm.grid import ParticleGrid
 from mpm.migrate import migrate
@@ -56,6 +57,8 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     particles, _ = migrate(grid, particles)
     friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
     rheology = rheology_from_spec(case.material.rheology, case.material.density)
+    slope = slope_geometry(disc, init["z"], case.gravity, case.model.curvature) \
+        if case.slope_form else None
     return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
                      friction, rheology, still, num.flip, num.particles_per_direction,
-                     resolved_thin_depth(case, comm, init["h"]))
+                     resolved_thin_depth(case, comm, init["h"]), slope)

@@ -34,6 +34,7 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
+from fem_runout.physics.slope import SlopeGeometry
 from mpm.exact_sum import extractors
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
@@ -68,13 +69,18 @@ class MPMSolver:
         flip: FLIP fraction of the particle velocity update (0: PIC, eq. 38 of the seed).
         per_direction: Particles per cell and direction at the start (the split limit).
         thin_depth: Particles thinner than this are not split [m] (:mod:`mpm.split`).
+        slope: Bed geometry of the slope-consistent form (local nodes), or None for the
+            seed's form: ``g`` of the body force and the pressure becomes
+            ``G_p = cos²θ max(g + u_p·H·u_p, 0)`` at each particle, the friction acts on the
+            bed (:mod:`fem_runout.physics.slope`).
     """
 
     def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
                  z: np.ndarray, density: float, gravity: float,
                  friction: FrictionLaw | None = None, rheology: Bingham | None = None,
                  still_depth: np.ndarray | None = None, flip: float = 0.0,
-                 per_direction: int = 2, thin_depth: float = 0.0) -> None:
+                 per_direction: int = 2, thin_depth: float = 0.0,
+                 slope: SlopeGeometry | None = None) -> None:
         self.disc, self.grid, self.particles = disc, grid, particles
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
@@ -86,6 +92,8 @@ class MPMSolver:
         self.nodal = NodalGrid(disc)
         self.z_g = self.nodal.to_global(self.z)
         self.still_g = None if still_depth is None else self.nodal.to_global(still_depth)
+        self.slope_g = None if slope is None else self._global_geometry(slope)
+        self._gp: np.ndarray | None = None  # G at the particles (slope form)
         self.projector = GridProjector(disc.cells, disc.spacing)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
@@ -111,7 +119,8 @@ class MPMSolver:
     def stable_dt(self) -> float:
         """``COURANT Δx / max(|v_p| + sqrt(g h_p))``, the slope and viscous limits."""
         p = self.particles
-        speed = np.hypot(p.u, p.v) + np.sqrt(self.g * p.h)
+        grav = self.g if self._gp is None else np.maximum(self._gp, self.g)
+        speed = np.hypot(p.u, p.v) + np.sqrt(grav * p.h)
         top = self.comm.allreduce(float(speed.max(initial=0.0)), op=MPI.MAX)
         dx = min(self.disc.spacing)
         dt = COURANT * dx / top if top > 0 else np.inf
@@ -184,8 +193,9 @@ class MPMSolver:
             (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
         if self.friction is not None:
             h = np.where(active, mass / (self.rho * np.where(active, g[:, 5], 1.0)), 0.0)
+            bed = None if self.slope_g is None else self.slope_g.frame(vx, vy)
             qx, qy = self.friction.implicit_update(h, h * g[:, 1] / safe, h * g[:, 2] / safe,
-                                                   h * vx, h * vy, dt)
+                                                   h * vx, h * vy, dt, bed)
             hs = np.where(h > 0, h, 1.0)
             vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
         return vx, vy
@@ -293,6 +303,8 @@ class MPMSolver:
         p, rho, g = self.particles, self.rho, self.g
         grad_z = interpolate_gradient(b.nodes, b.dN, self.z_g)
         self._slope = float(np.hypot(grad_z[:, 0], grad_z[:, 1]).max(initial=0.0))
+        if self.slope_g is not None:  # slope form: G_p replaces g (physics/slope.py)
+            g = self._gp = self._particle_gravity(b, grad_z)
         if self.still_g is None:
             weight = rho * g * p.volume  # eq. 34: -m_p g ∇Z
             pressure = 0.5 * rho * g * p.volume * p.h  # eq. 26: ½ ρ g h V_p
@@ -303,6 +315,23 @@ class MPMSolver:
         body = (-weight * grad_z[:, 0], -weight * grad_z[:, 1])
         tensor = (pressure - p.volume * p.sxx, pressure - p.volume * p.syy, -p.volume * p.sxy)
         return body, tensor
+
+
+    def _particle_gravity(self, b: Basis, grad_z: np.ndarray) -> np.ndarray:
+        """``G_p = cos²θ_p max(g + u_p·H_p·u_p, 0)`` with the bed at the particle."""
+        p, hess = self.particles, self.slope_g.hess
+        hxx, hxy, hyy = (interpolate(b.nodes, b.N, np.ascontiguousarray(hess[:, k]))
+                         for k in range(3))
+        uhu = p.u * (hxx * p.u + hxy * p.v) + p.v * (hxy * p.u + hyy * p.v)
+        cos2 = 1.0 / (1.0 + grad_z[:, 0] ** 2 + grad_z[:, 1] ** 2)
+        return cos2 * np.maximum(self.g + uhu, 0.0)
+
+    def _global_geometry(self, slope: SlopeGeometry) -> SlopeGeometry:
+        """Return the geometry on the global node array (collective)."""
+        def glob(a: np.ndarray) -> np.ndarray:
+            return np.stack([self.nodal.to_global(np.ascontiguousarray(a[:, k]))
+                             for k in range(a.shape[1])], axis=1)
+        return SlopeGeometry(glob(slope.grad), glob(slope.hess), slope.g, slope.curvature)
 
 
 def _amax(values: np.ndarray) -> float:

@@ -28,6 +28,7 @@ __all__ = [
     "FrictionSpec",
     "InitialSpec",
     "MaterialSpec",
+    "ModelSpec",
     "NumericsSpec",
     "OutputSpec",
     "ReleaseArea",
@@ -160,6 +161,22 @@ class MaterialSpec(StrictSpec):
     rheology: RheologySpec = RheologySpec()
 
 
+class ModelSpec(StrictSpec):
+    """How gravity acts on a flow over the terrain (:mod:`fem_runout.physics.slope`).
+
+    Attributes:
+        form: ``horizontal``: the seed's eq. 1 (full ``g`` on the vertical depth, friction on
+            the horizontal speed); ``slope``: slope-consistent (``g cos²θ`` and the bed-normal
+            acceleration, friction on the slope-normal thickness and the speed along the bed).
+            Default: ``slope`` with ``terrain.dem``, else ``horizontal``.
+        curvature: Add the centrifugal acceleration ``u·H·u`` of a curved bed to the normal
+            stress of the friction (``slope`` form only).
+    """
+
+    form: Literal["horizontal", "slope"] | None = None
+    curvature: Bool = False
+
+
 class OutputSpec(StrictSpec):
     """Where and how often to write results.
 
@@ -227,6 +244,7 @@ class Case(StrictSpec):
         terrain: Elevation expression.
         initial: Initial depth or free surface, and velocity.
         material: Density, friction and rheology.
+        model: Horizontal (seed) or slope-consistent form of gravity and friction.
         time: End time and step control.
         output: Output directory and frequency.
         numerics: Wet/dry tolerance and FCT switch.
@@ -240,6 +258,7 @@ class Case(StrictSpec):
     terrain: TerrainSpec = TerrainSpec()
     initial: InitialSpec
     material: MaterialSpec = MaterialSpec()
+    model: ModelSpec = ModelSpec()
     time: TimeSpec
     output: OutputSpec = OutputSpec()
     numerics: NumericsSpec = NumericsSpec()
@@ -262,6 +281,20 @@ class Case(StrictSpec):
             if d.cells is None and d.cell_size is None:
                 raise SpecError("give exactly one of cells: [nx, ny] or cell_size: <m>", "domain")
         return self
+
+    @model_validator(mode="after")
+    def _curvature_needs_slope(self) -> Case:
+        if self.model.curvature and not self.slope_form:
+            raise SpecError("needs model.form: slope (the default with terrain.dem)",
+                            "model.curvature")
+        return self
+
+    @property
+    def slope_form(self) -> bool:
+        """True for the slope-consistent form (``model.form``, default: with a DEM)."""
+        if self.model.form is None:
+            return self.terrain.dem is not None
+        return self.model.form == "slope"
 
     def __eq__(self, other: object) -> bool:
         """Equal when all fields are equal (``source_dir`` is ignored)."""

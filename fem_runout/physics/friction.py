@@ -41,6 +41,17 @@ or at the current momentum when that lies between the root and this bound, and c
 monotonically and quadratically (at most 6 iterations to ``|G_i| <= 1e-13 |q*_i|`` on random
 states). Both directions give the same ``|q|``, so the friction stays collinear with ``v``.
 
+**Slope-consistent form** (:mod:`fem_runout.physics.slope`). With a :class:`BedFrame` the law
+acts on the bed: the Coulomb stress ``μ σ_n`` with the bed-normal stress per unit mass
+``g_N = g cosθ`` on the normal thickness ``h_n = h cosθ``, the turbulent stress
+``ρ g |U|²/ξ`` with the speed along the bed ``|U| = s |u|``, ``s = sqrt(1 + (n·∇Z)²)`` for
+the direction ``n`` of motion; both act along ``-U``, whose horizontal part is ``-n/s`` per unit
+magnitude. Per unit horizontal area on the horizontal momentum this is the same formula with
+``g`` replaced by ``g_c = g_N/s`` in the Coulomb term and ``g_t = g s/cosθ`` in the turbulent
+one (a block on a plane: ``μ g cos²θ`` horizontally, ``g (sinθ - μ cosθ)`` along the slope;
+a Voellmy sheet: ``|U|² = ξ h_n (sinθ - μ cosθ)``). ``n`` is the direction of ``q*`` in the
+implicit update (friction is collinear with it), of ``v`` in the explicit rate.
+
 **Where γ is used.** Once the sign is resolved by the yield test the residual is smooth (the
 semi-smooth Newton of seed §3.1.1 reduces to Newton) and ``γ`` is not needed by the implicit
 update. It is used by :meth:`FrictionLaw.rate`, the explicit evaluation, as seed eq. 20 says.
@@ -53,6 +64,7 @@ import math
 import numpy as np
 
 from fem_runout.config.schema import FrictionSpec
+from fem_runout.physics.slope import BedFrame
 
 __all__ = ["Coulomb", "FrictionLaw", "Voellmy", "friction_from_spec", "relaxed_sign"]
 
@@ -105,7 +117,36 @@ class FrictionLaw:
         """Turbulence coefficient ``ξ`` [m/s²] (``inf`` for Coulomb)."""
         return math.inf if self.inv_xi == 0.0 else 1.0 / self.inv_xi
 
-    def rate(self, h: Array, qx: Array, qy: Array) -> tuple[Array, Array]:
+    def scales(self, bed: BedFrame | None, nx: Array, ny: Array) -> tuple[Array | float, ...]:
+        """``(g_c, g_t)``: the gravity of the Coulomb and the turbulent term for direction n.
+
+        ``(g, g)`` in the seed's horizontal form (``bed`` None); on a bed
+        ``(g_N/s, g s/cosθ)`` with ``s = sqrt(1 + (n·∇Z)²)`` (module docstring).
+        """
+        if bed is None:
+            return self.gravity, self.gravity
+        s = bed.stretch(nx, ny)
+        return bed.normal / s, self.gravity * s / bed.cos
+
+    def yield_impulse(self, h: Array, qx: Array, qy: Array, dt: float,
+                      bed: BedFrame | None = None) -> Array:
+        """Coulomb impulse ``dt μ g_c h`` a node can absorb in ``dt``.
+
+        On a bed the direction is that of ``q``, or straight down the slope at rest (where
+        a layer at rest would start to move).
+        """
+        if bed is None:
+            return dt * self.gravity * self.mu * np.maximum(h, 0.0)
+        norm = np.hypot(qx, qy)
+        down = -bed.grad / np.maximum(np.hypot(bed.grad[:, 0], bed.grad[:, 1]), 1e-300)[:, None]
+        safe = np.where(norm > 0.0, norm, 1.0)
+        nx = np.where(norm > 0.0, qx / safe, down[:, 0])
+        ny = np.where(norm > 0.0, qy / safe, down[:, 1])
+        gc, _ = self.scales(bed, nx, ny)
+        return dt * gc * self.mu * np.maximum(h, 0.0)
+
+    def rate(self, h: Array, qx: Array, qy: Array,
+             bed: BedFrame | None = None) -> tuple[Array, Array]:
         """Explicit friction rate ``r(q)`` of seed eq. 2 with the relaxed sign of seed eq. 20.
 
         ``r = -(g μ h sgn_γ(|v|) + g |v|²/ξ) v/|v|`` with ``v = q/h``; zero on dry nodes and at
@@ -116,6 +157,7 @@ class FrictionLaw:
             h: Depth [m], shape (n,).
             qx: x-momentum ``h u`` [m²/s], shape (n,).
             qy: y-momentum ``h v`` [m²/s], shape (n,).
+            bed: The bed under the nodes (slope-consistent form), or None (seed's form).
 
         Returns:
             ``(rx, ry)`` [m²/s²], shape (n,).
@@ -125,9 +167,10 @@ class FrictionLaw:
         hw = np.where(wet, h, 1.0)
         ux, uy = qx / hw, qy / hw
         speed = np.hypot(ux, uy)
-        g = self.gravity
+        moving = np.where(speed > 0.0, speed, 1.0)
+        gc, gt = self.scales(bed, ux / moving, uy / moving)
         # -(g μ h sgn_γ(|v|)/|v| + g |v|/ξ) v, with sgn_γ(|v|)/|v| = 1/max(|v|, γ)
-        coef = g * self.mu * hw / np.maximum(speed, self.gamma) + g * self.inv_xi * speed
+        coef = gc * self.mu * hw / np.maximum(speed, self.gamma) + gt * self.inv_xi * speed
         coef = np.where(wet, coef, 0.0)
         return -coef * ux, -coef * uy
 
@@ -139,6 +182,7 @@ class FrictionLaw:
         qx_star: Array,
         qy_star: Array,
         dt_mu: float,
+        bed: BedFrame | None = None,
     ) -> tuple[Array, Array]:
         """Solve the implicit stage equation ``q - θ r(q) = q*`` node by node (seed eq. 17).
 
@@ -154,6 +198,7 @@ class FrictionLaw:
             qx_star: x-component of the right-hand side ``q*`` [m²/s], shape (n,).
             qy_star: y-component of the right-hand side ``q*`` [m²/s], shape (n,).
             dt_mu: ``θ = μ̃_1 Δt`` [s], >= 0.
+            bed: The bed under the nodes (slope-consistent form), or None (seed's form).
 
         Returns:
             ``(qx_new, qy_new)``; zero on dry nodes (``h <= dry_tol``) and below the yield.
@@ -166,23 +211,28 @@ class FrictionLaw:
         wet = h > self.dry_tol
         hw = np.where(wet, h, 1.0)
         norm = np.hypot(sx, sy)
-        moving = wet & (norm > theta * self.gravity * self.mu * hw)
+        unit = np.where(norm > 0.0, norm, 1.0)
+        gc, gt = self.scales(bed, sx / unit, sy / unit)
+        moving = wet & (norm > theta * gc * self.mu * hw)
         safe = np.where(moving, norm, 1.0)
         out = []
         for star, guess in ((sx, qx), (sy, qy)):
             n_i = np.where(moving, star / safe, 0.0)
-            out.append(self._solve_direction(hw, star, guess, n_i, theta, moving))
+            out.append(self._solve_direction(hw, star, guess, n_i, theta, moving, gc, gt))
         return out[0], out[1]
 
     def _solve_direction(
-        self, h: Array, star: Array, guess: Array, n_i: Array, theta: float, moving: Array
+        self, h: Array, star: Array, guess: Array, n_i: Array, theta: float, moving: Array,
+        gc: Array | float, gt: Array | float,
     ) -> Array:
-        """Newton solve of ``x + a |x| x = R`` for one direction (see :meth:`implicit_update`)."""
-        g = self.gravity
-        rhs = np.where(moving, star - theta * g * self.mu * h * n_i, 0.0)
+        """Newton solve of ``x + a |x| x = R`` for one direction (see :meth:`implicit_update`).
+
+        ``gc``, ``gt``: gravity of the Coulomb and turbulent terms (:meth:`scales`).
+        """
+        rhs = np.where(moving, star - theta * gc * self.mu * h * n_i, 0.0)
         active = moving & (n_i != 0.0)
         mag_n = np.where(active, np.abs(n_i), 1.0)
-        a = np.where(active, theta * g * self.inv_xi / (h * h * mag_n), 0.0)
+        a = np.where(active, theta * gt * self.inv_xi / (h * h * mag_n), 0.0)
         sign = np.sign(rhs)
         r_abs = np.abs(rhs)
         # upper bounds on the root |x|: |R| (no turbulence) and sqrt(|R|/a) (turbulence only)
@@ -190,7 +240,7 @@ class FrictionLaw:
         g_abs = np.abs(guess)
         use_guess = (np.sign(guess) == sign) & (g_abs <= bound) & (g_abs + a * g_abs**2 >= r_abs)
         x = np.where(use_guess, g_abs, bound)  # work with |x| (x has the sign of R)
-        scale = r_abs + theta * g * self.mu * h * np.abs(n_i)
+        scale = r_abs + theta * gc * self.mu * h * np.abs(n_i)
         for _ in range(NEWTON_MAX_ITER):
             res = x + a * x * x - r_abs
             todo = np.abs(res) > NEWTON_RTOL * scale

@@ -20,7 +20,7 @@ SPEED_MARGIN = 0.25
 
 
 @numba.njit(cache=True)
-def deeper_patch_max(cells, speed, depth, z, g, vmax):
+def deeper_patch_max(cells, speed, depth, z, g, gn, vmax):
     """Speed bound from the patch: Riemann invariant plus the drop in bed, deeper nodes weighted.
 
     For every other node ``j`` of i's cells, ``vmax[i]`` is extended by
@@ -30,12 +30,14 @@ def deeper_patch_max(cells, speed, depth, z, g, vmax):
     ``ρ_ij = clip(2 h_j / h_i - 1, 0, 1)`` is 1 where j is at least as deep as i, 0 where it
     is less than half as deep and linear in between, so that thin fast nodes do not feed
     each other's bounds, without a switch on ``h_j >= h_i``. A node with no neighbour at
-    least half as deep gets 0 here (then only the margin ``SPEED_MARGIN c_i``).
+    least half as deep gets 0 here (then only the margin ``SPEED_MARGIN c_i``). The wave
+    speeds use the nodal gravity ``gn`` of the pressure term (``g``, or the slope form's
+    ``G``); the fall uses ``g`` (an upper bound of the energy it gives).
     """
     n = depth.shape[0]
     wave = np.empty(n)  # c = sqrt(g h) per node, once
     for i in range(n):
-        wave[i] = np.sqrt(g * max(depth[i], 0.0))
+        wave[i] = np.sqrt(gn[i] * max(depth[i], 0.0))
     for k in range(cells.shape[0]):
         for a in range(4):
             i = cells[k, a]
@@ -58,7 +60,8 @@ def deeper_patch_max(cells, speed, depth, z, g, vmax):
 
 
 def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: np.ndarray,
-                z: np.ndarray, g: float, speed: np.ndarray) -> None:
+                z: np.ndarray, g: float, speed: np.ndarray,
+                gn: np.ndarray | None = None) -> None:
     """Bound each node's speed by what its patch can feed it (continuous in the data).
 
     The limiter bounds the momenta, not the velocity; in a draining layer (h → 0) the
@@ -89,13 +92,15 @@ def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: 
         z: Nodal bed elevation.
         g: Gravity [m/s²].
         speed: (n,) desingularised low-order speed.
+        gn: (n,) nodal gravity of the wave speeds (default ``g`` everywhere).
     """
     depth = np.ascontiguousarray(q_low[:, 0])
+    gn = np.full(q.shape[0], float(g)) if gn is None else gn
     smax = np.zeros(q.shape[0])
-    deeper_patch_max(cells, np.ascontiguousarray(speed), depth, z, g, smax)
+    deeper_patch_max(cells, np.ascontiguousarray(speed), depth, z, g, gn, smax)
     reducer.reduce(smax, "max")
     norm = np.hypot(q[:, 1], q[:, 2])
-    wave = np.sqrt(g * np.maximum(depth, 0.0))
+    wave = np.sqrt(gn * np.maximum(depth, 0.0))
     limit = np.maximum(q[:, 0], 0.0) * (smax + SPEED_MARGIN * wave)
     over = norm > limit
     q[over, 1:] *= (limit[over] / norm[over])[:, None]

@@ -37,6 +37,7 @@ from fem_runout.integrators.rkc import IMEXRKC
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
+from fem_runout.physics.slope import BedFrame, SlopeGeometry
 
 
 class DiffusionReaction:
@@ -49,6 +50,7 @@ class DiffusionReaction:
         rheology: Bingham rheology or None.
         dry_tolerance: Dry threshold [m].
         thin_depth: Desingularisation depth κ [m].
+        slope: Bed geometry of the slope-consistent form (friction on the bed), or None.
     """
 
     def __init__(
@@ -59,8 +61,9 @@ class DiffusionReaction:
         rheology: Bingham | None,
         dry_tolerance: float,
         thin_depth: float,
+        slope: SlopeGeometry | None = None,
     ) -> None:
-        self.disc, self.h = disc, h
+        self.disc, self.h, self.slope = disc, h, slope
         self.friction, self.rheology = friction, rheology
         self.tol, self.kappa = dry_tolerance, max(thin_depth, dry_tolerance)
         self.rkc = IMEXRKC()
@@ -147,9 +150,19 @@ class DiffusionReaction:
                               lambda w: np.zeros_like(w))
             self.last_stages = self.rkc.last_stages
         if self.friction is not None:
-            qx, qy = self.friction.implicit_update(h, q[:, 0], q[:, 1], q[:, 0], q[:, 1], dt)
+            qx, qy = self.friction.implicit_update(h, q[:, 0], q[:, 1], q[:, 0], q[:, 1], dt,
+                                                   self.bed(q))
             q = np.stack([qx, qy], axis=1)
         return q
+
+
+    def bed(self, q: np.ndarray) -> BedFrame | None:
+        """Return the bed under the nodes for the friction (None in the seed's form)."""
+        if self.slope is None:
+            return None
+        h = self.h.x.array
+        f = np.where(h > self.tol, 1.0 / np.where(h > self.tol, h, 1.0), 0.0)
+        return self.slope.frame(q[:, 0] * f, q[:, 1] * f)
 
 
 def _center_gradients(xc: np.ndarray) -> np.ndarray:

@@ -244,3 +244,65 @@ def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
                 lo[1, i] = min(lo[1, i], mx_lo)
                 hi[2, i] = max(hi[2, i], my_hi)
                 lo[2, i] = min(lo[2, i], my_lo)
+
+
+@numba.njit(cache=True)
+def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
+    """Limit the pair fluxes of (h, hu, hv) together, per cell and node (``out[c, K, a]``).
+
+    Each pair flux ``f_c`` first gets its own Zalesak factor ``α_c`` (as in
+    :func:`limit_pairs`), then the common factor ``α = min_c (1 - (1 - α_c) s_c / s_max)``
+    with the significance ``s_h = |f_h| U_ij``, ``s_q = |f_q|`` (``U_ij`` the larger flow
+    speed ``|u|`` of the two nodes: the momentum the mass flux carries): a mass flux that
+    carries the momentum flux caps it
+    with its own factor and the reverse, so mass does not move without its momentum; a
+    negligible flux (a uniform depth under a shear flow) does not cap the others. Where
+    ``f_c`` changes sign its weight ``s_c / s_max`` vanishes, so ``α`` is continuous; the
+    flux gets ``min(α, α_c) f_c`` and stays within its own bounds. Sources get their own
+    factor. The momenta (fluxes and sources) are further capped by ``min(cap_i, cap_j)``
+    (the thin-layer cap of :meth:`fem_runout.tg2.limiter.Limiter.thin_cap`).
+
+    Args:
+        cells: (n, 4) node indices.
+        flux: (3, n, 6) pair fluxes.
+        source: (3, n) per-cell sources.
+        rplus: (3, n_nodes) ``R⁺`` per variable.
+        rminus: (3, n_nodes) ``R⁻`` per variable.
+        speed: (n_nodes,) flow speed ``|u|``.
+        cap: (n_nodes,) cap of the momentum fluxes.
+        out: (3, n, 4) output.
+    """
+    alpha = np.empty(3)
+    sig = np.empty(3)
+    for k in range(cells.shape[0]):
+        for c in range(3):
+            mu = source[c, k]
+            for a in range(4):
+                i = cells[k, a]
+                r = rplus[c, i] if mu > 0.0 else rminus[c, i]
+                out[c, k, a] = mu * (r if c == 0 else min(r, cap[i]))
+        for p in range(6):
+            a = PAIRS[p, 0]
+            b = PAIRS[p, 1]
+            i = cells[k, a]
+            j = cells[k, b]
+            top = 0.0
+            for c in range(3):
+                f = flux[c, k, p]
+                if f > 0.0:
+                    alpha[c] = min(rplus[c, i], rminus[c, j])
+                else:
+                    alpha[c] = min(rminus[c, i], rplus[c, j])
+                sig[c] = abs(f) * (max(speed[i], speed[j]) if c == 0 else 1.0)
+                top = max(top, sig[c])
+            common = 1.0
+            if top > 0.0:
+                for c in range(3):
+                    common = min(common, 1.0 - (1.0 - alpha[c]) * (sig[c] / top))
+            for c in range(3):
+                factor = min(common, alpha[c])
+                if c > 0:
+                    factor = min(factor, min(cap[i], cap[j]))
+                f = flux[c, k, p] * factor
+                out[c, k, a] += f
+                out[c, k, b] -= f

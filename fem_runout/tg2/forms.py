@@ -37,7 +37,7 @@ def predictor_form(
     eta_cell: fem.Function,
     W0: fem.FunctionSpace,
     dt: fem.Constant,
-    g: fem.Constant,
+    g: fem.Constant | fem.Function,
 ) -> fem.Form:
     """Linear form of the DG0 predictor increment (eq. 10, first line).
 
@@ -51,7 +51,7 @@ def predictor_form(
         eta_cell: DQ1 free surface η̃ per cell.
         W0: DG0 space with 3 components (h, hu, hv).
         dt: Time step (the transport step).
-        g: Gravity.
+        g: Gravity: a constant, or the slope form's DG0 ``G`` per cell.
     """
     h, hu, hv = state
     q = ufl.as_vector([hu, hv])
@@ -71,7 +71,7 @@ def corrector_form(
     cell_eta: fem.Function,
     Wd: fem.FunctionSpace,
     dt: fem.Constant,
-    g: fem.Constant,
+    g: fem.Constant | fem.Function,
     dry: fem.Constant,
     z: fem.Function,
     measures: tuple[tuple[ufl.Measure, ufl.Measure | None], ...],
@@ -90,7 +90,7 @@ def corrector_form(
         cell_eta: DG0 free surface ``h_K + Z̃_K``.
         Wd: Discontinuous Q1 space with 3 components.
         dt: Time step.
-        g: Gravity.
+        g: Gravity: a constant, or the slope form's DG0 ``G`` per cell.
         dry: Depth δ of the wet weight ``min(1, h/δ)`` (the thin depth κ).
         z: Q1 bed elevation (for the ghost state of open boundaries).
         measures: ``(dS, ds_open)`` pairs; ``ds_open`` None where no side is open.
@@ -116,7 +116,9 @@ def corrector_form(
     dry_p = 1.0 - ufl.min_value(1.0, ufl.max_value(hp, 0.0) / (dry + BANK_SLOPE * drop_p))
     em_eff = em - dry_m * drop_m
     ep_eff = ep - dry_p * drop_p
-    fluct = g * 0.5 * (hp + hm) * (em_eff - ep_eff)
+    # the slope form's per-cell G is averaged over the facet (the seed's g is a constant)
+    g_face = g if isinstance(g, fem.Constant) else ufl.avg(g)
+    fluct = g_face * 0.5 * (hp + hm) * (em_eff - ep_eff)
     psi_m = ufl.as_vector([psi[1], psi[2]])
     dx = ufl.dx(metadata={"quadrature_degree": 1})
     normal_size = abs(n[0]) * spacing[0] + abs(n[1]) * spacing[1]

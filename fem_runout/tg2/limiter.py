@@ -11,7 +11,12 @@ One call of :meth:`Limiter.correction` turns the antidiffusive element contribut
 3. each momentum component stays within the patch extrema of the old and low-order momenta
    and of the low-order bar states (:func:`.low_order.bar_state_extrema`), relaxed by
    ``MOMENTUM_SLACK`` times their range;
-4. near thin layers the momentum fluxes get no more than the depth's own (regularised)
+4. synchronized (:func:`.fct.limit_pairs_sync`): the fluxes of ``h``, ``hu``, ``hv`` of a
+   node pair share a factor, each variable's own weighted by how much of the pair's
+   transport it carries, so mass does not move without its momentum nor momentum without
+   its mass (synchronized FCT: Löhner et al. 1987, Kuzmin, Möller & Gurris 2012; Hajduk &
+   Kuzmin 2022 limit the momentum with the depth's factor for the same reason);
+5. near thin layers the momentum fluxes get no more than the depth's own (regularised)
    Zalesak ratio, through a continuous ramp (:meth:`Limiter.thin_cap`).
 
 Every bound is a max/min over the full patch of a node (ghost cells included, reduced over
@@ -53,26 +58,30 @@ class Limiter:
     Args:
         disc: The discretization.
         reducer: Max/min reduction over the ranks sharing a node.
-        gravity: g [m/s²].
+        gravity: Nodal gravity of the pressure term (``g``, or ``G`` of the slope form), an
+            array the transport updates in place.
         kappa: Thin-layer depth κ [m] (regularisation of the thin-layer ratio).
     """
 
-    def __init__(self, disc: Discretization, reducer: GhostReducer, gravity: float,
+    def __init__(self, disc: Discretization, reducer: GhostReducer, gravity: np.ndarray,
                  kappa: float) -> None:
         self.disc = disc
         self.reducer = reducer
-        self.g = float(gravity)
+        self.g = gravity
         self.kappa = float(kappa)
         #: depth under which a layer is thin whatever its neighbours (1e-3 h_max by default)
         self.thin_depth = 1e3 * self.kappa
         self.owned = disc.cell_nodes[: disc.n_owned_cells]
         self.beta_all = pair_coefficients(disc.C)  # owned and ghost cells: whole patches
         n = self.owned.shape[0]
-        self._per_cell1, self._per_cell2 = np.empty((n, 4)), np.empty((n, 4, 2))
+        self._per_cell2, self._per_cell3 = np.empty((n, 4, 2)), np.empty((3, n, 4))
 
     def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
                    u: np.ndarray) -> np.ndarray:
         """Limited nodal corrections (n, 3) of (h, hu, hv) (collective).
+
+        Synchronized (:func:`.fct.limit_pairs_sync`): each pair's fluxes of ``h``, ``hu``,
+        ``hv`` share a factor weighted by their significance, on top of their own bounds.
 
         Args:
             q0: (n, 3) state at the start of the step.
@@ -81,20 +90,30 @@ class Limiter:
             z: Nodal bed elevation.
             u: (2, n) desingularised nodal velocity of ``q0``.
         """
-        m = self.disc.lumped_mass
+        d = self.disc
+        m = d.lumped_mass
         upper, lower = self.bounds(q0, q_low, z, u)
         n = self.owned.shape[0]
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
+        rplus, rminus = np.empty((3, q0.shape[0])), np.empty((3, q0.shape[0]))
         for c in range(3):
             fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
-        corr = np.empty_like(q0)
-        rooms = m[:, None] * (upper - q_low), m[:, None] * (lower - q_low)
-        corr[:, 0], soft = self._limited(flux[0], source[0], rooms[0][:, 0], rooms[1][:, 0],
-                                         np.ones(q0.shape[0]))
+            fct.flux_sums(flux[c], source[c], self._per_cell2)
+            sums = d.cell_sum(self._per_cell2)
+            qplus, qminus = m * (upper[:, c] - q_low[:, c]), m * (lower[:, c] - q_low[:, c])
+            rplus[c], rminus[c] = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
+            if c == 0:  # the depth's sign-free ratio, P floored: continuous where nothing flows
+                floor = m * self.kappa * RATIO_FLOOR
+                soft = np.minimum(
+                    np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),
+                    np.minimum(1.0, np.minimum(qminus, 0.0) / np.minimum(sums[:, 1], -floor)))
         cap = np.maximum(self.thin_cap(q_low[:, 0]), soft)
-        for c in (1, 2):
-            corr[:, c] = self._limited(flux[c], source[c], rooms[0][:, c], rooms[1][:, c],
-                                       cap)[0]
+        out = self._per_cell3
+        fct.limit_pairs_sync(self.owned, flux, source, rplus, rminus, np.hypot(u[0], u[1]),
+                             cap, out)
+        corr = np.empty_like(q0)
+        for c in range(3):
+            corr[:, c] = d.cell_sum(out[c])
         return corr
 
     def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray,
@@ -131,23 +150,3 @@ class Limiter:
         self.reducer.reduce(near, "min")
         self.reducer.reduce(far, "max")
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)
-
-    def _limited(self, flux: np.ndarray, source: np.ndarray, qplus: np.ndarray,
-                 qminus: np.ndarray, cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Edge-based Zalesak correction of one variable, summed over ranks.
-
-        Returns the nodal correction and the sign-free ratio ``min(R̃⁺, R̃⁻)`` with ``P``
-        floored at ``RATIO_FLOOR m κ``.
-        """
-        d = self.disc
-        per_cell = self._per_cell2
-        fct.flux_sums(flux, source, per_cell)
-        sums = d.cell_sum(per_cell)
-        rplus, rminus = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
-        out = self._per_cell1
-        fct.limit_pairs(self.owned, flux, source, rplus, rminus, cap, out)
-        floor = d.lumped_mass * self.kappa * RATIO_FLOOR
-        soft = np.minimum(
-            np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),
-            np.minimum(1.0, np.minimum(qminus, 0.0) / np.minimum(sums[:, 1], -floor)))
-        return d.cell_sum(out), soft

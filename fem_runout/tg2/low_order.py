@@ -96,7 +96,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
         z: Nodal elevation.
         ux: Nodal x-velocity (see :func:`velocity`).
         uy: Nodal y-velocity.
-        g: Gravity.
+        g: Nodal gravity of the pressure term, ``g`` or the slope form's ``G``.
         tol: Depth δ of the wet weight (:func:`bank_drop`).
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
         cap: (n, 4) ``Σ_j (d_ij + |β_ij·u_i|)`` per cell and node is added here.
@@ -116,8 +116,8 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
                 p1 += (eta_hat - eta_i) * C[k, a, b, 0]
                 p2 += (eta_hat - eta_i) * C[k, a, b, 1]
             out[k, a, 0] = 0.0
-            out[k, a, 1] = -g * h[i] * p1
-            out[k, a, 2] = -g * h[i] * p2
+            out[k, a, 1] = -g[i] * h[i] * p1
+            out[k, a, 2] = -g[i] * h[i] * p2
         for p in range(6):
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
@@ -131,8 +131,8 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
             nb = np.sqrt(bx * bx + by * by)
             bu_i = bx * ux[i] + by * uy[i]
             bu_j = bx * ux[j] + by * uy[j]
-            c_i = np.sqrt(g * max(h[i], 0.0))
-            c_j = np.sqrt(g * max(h[j], 0.0))
+            c_i = np.sqrt(g[i] * max(h[i], 0.0))
+            c_j = np.sqrt(g[j] * max(h[j], 0.0))
             d = max(abs(bu_i) + c_i * nb, abs(bu_j) + c_j * nb)
             fm = -(hs_ij * bu_i + hs_ji * bu_j) + d * (hs_ji - hs_ij)
             fx = -bu_i * hs_ij * ux[i] - bu_j * hs_ji * ux[j] + d * (hs_ji * ux[j] - hs_ij * ux[i])
@@ -220,7 +220,7 @@ def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
         ux: Nodal x-velocity (desingularised).
         uy: Nodal y-velocity.
         z: Nodal elevation.
-        g: Gravity.
+        g: Nodal gravity of the pressure term (``g`` or ``G``).
         vmax: (2, n_nodes) upper bounds of (hu, hv), extended in place.
         vmin: (2, n_nodes) lower bounds, extended in place.
     """
@@ -236,11 +236,11 @@ def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
             hj_ = max(0.0, h[j] + z[j] - zm)
             bu_i = bx * ux[i] + by * uy[i]
             bu_j = bx * ux[j] + by * uy[j]
-            d = max(abs(bu_i) + np.sqrt(g * max(h[i], 0.0)) * nb,
-                    abs(bu_j) + np.sqrt(g * max(h[j], 0.0)) * nb)
+            d = max(abs(bu_i) + np.sqrt(g[i] * max(h[i], 0.0)) * nb,
+                    abs(bu_j) + np.sqrt(g[j] * max(h[j], 0.0)) * nb)
             if d <= 0.0:
                 continue
-            dp = 0.5 * g * (hj_ * hj_ - hi_ * hi_)
+            dp = 0.5 * (0.5 * (g[i] + g[j])) * (hj_ * hj_ - hi_ * hi_)
             for c in range(2):
                 ui = ux[i] if c == 0 else uy[i]
                 uj = ux[j] if c == 0 else uy[j]

@@ -12,6 +12,7 @@ from fem_runout.mesh import Discretization, build_discretization
 from fem_runout.parallel import agree_on_errors
 from fem_runout.physics.friction import friction_from_spec
 from fem_runout.physics.rheology import rheology_from_spec
+from fem_runout.physics.slope import slope_geometry
 from fem_runout.tg2.diffusion import DiffusionReaction
 from fem_runout.tg2.transport import Transport
 
@@ -106,7 +107,8 @@ class TG2Solver:
         friction = self.reaction.friction if self.reaction is not None else None
         if friction is None or friction.mu == 0.0:
             return None
-        cap = dt * friction.gravity * friction.mu * np.maximum(state[:, 0], 0.0)
+        cap = friction.yield_impulse(state[:, 0], state[:, 1], state[:, 2], dt,
+                                     self.reaction.bed(state[:, 1:]))
         return np.maximum(cap - np.hypot(state[:, 1], state[:, 2]), 0.0)
 
     def snapshot(self) -> tuple[np.ndarray, float]:
@@ -184,7 +186,9 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     num = case.numerics
     thin = resolved_thin_depth(case, comm, init["h"])
-    transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct)
+    slope = slope_geometry(disc, init["z"], case.gravity, case.model.curvature) \
+        if case.slope_form else None
+    transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct, slope)
     for name in ("z", "h", "hu", "hv"):
         getattr(transport, name).x.array[:] = init[name]
     friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
@@ -192,5 +196,5 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     reaction = None
     if friction is not None or rheology is not None:
         reaction = DiffusionReaction(disc, transport.h, friction, rheology, num.dry_tolerance,
-                                     thin)
+                                     thin, slope)
     return TG2Solver(disc, transport, reaction, case.time.cfl)

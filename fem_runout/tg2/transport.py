@@ -22,6 +22,7 @@ from dolfinx import fem, la
 from mpi4py import MPI
 
 from fem_runout.mesh import Discretization, GhostReducer, facet_measures
+from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.tg2 import bounds
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.limiter import Limiter
@@ -45,6 +46,8 @@ class Transport:
         dry_tolerance: Depth under which a node counts as dry [m].
         thin_depth: Depth κ under which velocities are desingularised [m].
         fct_enabled: Blend with the low-order scheme (True) or use raw TG2-PC (False).
+        slope: Bed geometry of the slope-consistent form (``g`` in ``g h ∇η`` and the wave
+            speeds becomes ``G = cos²θ max(g + u·H·u, 0)``), or None for the seed's form.
     """
 
     def __init__(
@@ -54,9 +57,13 @@ class Transport:
         dry_tolerance: float,
         thin_depth: float,
         fct_enabled: bool = True,
+        slope: SlopeGeometry | None = None,
     ) -> None:
         self.disc = disc
         self.g = float(gravity)
+        self.slope = slope
+        #: nodal gravity of the pressure term: g, or G of the slope form (updated per pass)
+        self.gn = np.full(disc.coords.shape[0], self.g)
         self.tol = float(dry_tolerance)
         self.kappa = max(float(thin_depth), self.tol)
         #: width of the wet weight min(1, h/δ) of the slope time-step limit
@@ -74,7 +81,8 @@ class Transport:
         self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
         self.uk, self.etak = fem.Function(U0), fem.Function(S0)
         self.dt = fem.Constant(msh, 0.0)
-        g = fem.Constant(msh, self.g)
+        self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
+        g = fem.Constant(msh, self.g) if slope is None else self.gk
         state, vel = (self.h, self.hu, self.hv), (self.ux, self.uy)
         self.pred_form = predictor_form(state, vel, self.eta_t, W0, self.dt, g)
         self.corr_form = corrector_form(
@@ -93,7 +101,7 @@ class Transport:
         self._dof0 = _as_slice(self._dof0)
         self._dofs0 = _as_slice(self._dofs0)
         self.reducer = GhostReducer(disc)
-        self.limiter = Limiter(disc, self.reducer, self.g, self.kappa)
+        self.limiter = Limiter(disc, self.reducer, self.gn, self.kappa)
         self.outflow_volume = 0.0
         no = disc.n_owned_cells
         self._lo = np.zeros((no, 4, 3))
@@ -158,9 +166,11 @@ class Transport:
         """Velocity, low-order rates A_L (self._lo) and capacities (self._cap) of the state."""
         h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
         velocity(h, hu, hv, self.kappa, self.ux.x.array, self.uy.x.array)
+        if self.slope is not None:
+            self.gn[:] = self.slope.pressure_gravity(self.ux.x.array, self.uy.x.array)
         self._cap[:] = 0.0
         low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
-                       self.uy.x.array, self.g, self.kappa, self._lo, self._cap)
+                       self.uy.x.array, self.gn, self.kappa, self._lo, self._cap)
         self._fresh = True
 
     def step(self, dt: float) -> None:
@@ -177,6 +187,8 @@ class Transport:
             eta_t.reshape(-1, 4)[self._dofsd] = cell_eta
         else:
             eta_t[self._dofsd] = cell_eta
+        if self.slope is not None:
+            self.gk.x.array[self._dofs0] = self.gn[d.cell_nodes].mean(axis=1)
         high = self._high_order(cell_eta)
         q0 = self.state()
         low_rate = self._low_order_rates(h, hu, hv)
@@ -257,7 +269,7 @@ class Transport:
         velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
                  np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
         bounds.bound_speed(self.disc.cell_nodes, self.reducer, q_low, q, self.z.x.array, self.g,
-                           np.hypot(ux, uy))
+                           np.hypot(ux, uy), self.gn)
 
     def _finalise(self, q: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping."""
