@@ -110,3 +110,19 @@ def test_dampm_volume_balance_with_outflow(tmp_path: Path) -> None:
     Runner(solver, Schedule(12.0, 0.9, 12.0), []).run()
     assert solver.outflow_volume > 0.1 * start
     assert abs(solver.particle_volume() + solver.outflow_volume - start) <= 1e-14 * start
+
+
+def test_slope_normal_peak_depth_map(steep_run) -> None:
+    """``peak_depth_normal`` = peak vertical depth × cos(slope), and each map says what it is."""
+    _, result, _ = steep_run
+    with rasterio.open(result.out_dir / "peak_depth.tif") as a, \
+            rasterio.open(result.out_dir / "peak_depth_normal.tif") as b:
+        vertical, normal = a.read(1), b.read(1)
+        assert "vertical" in a.descriptions[0] and "normal" in b.descriptions[0]
+    wet = vertical > 0
+    assert wet.sum() > 10
+    ratio = normal[wet] / vertical[wet]  # cos of the plane (slope 0.6), less on the bump
+    plane_cos = 1 / np.sqrt(1 + 0.6**2)
+    assert ratio.max() <= 1.0 and ratio.min() >= 0.9 * plane_cos
+    assert np.median(ratio) == pytest.approx(plane_cos, rel=0.01)
+    assert result.summary["peak_depth_normal_max"] <= result.summary["peak_depth_max"]

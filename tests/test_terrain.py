@@ -166,4 +166,10 @@ def test_avakot_case() -> None:
                        np.linspace(*case.domain.extent[2:], ny + 1))
     h = case.initial_depth(x, y)
     area = np.full((ny + 1, nx + 1), case.domain.cell_size**2)
-    assert (h * area).sum() == pytest.approx(15188.05685224, rel=1e-9)  # polygon area x 1.0 m
+    # the 1.0 m is normal to the slope (thickness_normal): times cos(slope) it is the polygon
+    # area x 1.0 m; the volume is com1DFA 2.1's for the same polygon (21 346 m³) within 2 %
+    from fem_runout.terrain.nodes import _inv_cos_slope
+
+    normal = h / _inv_cos_slope(case, x, y)
+    assert (normal * area).sum() == pytest.approx(15188.05685224, rel=1e-9)
+    assert (h * area).sum() == pytest.approx(21346.32, rel=0.02)

@@ -8,6 +8,7 @@ from types import ModuleType
 from fem_runout.bench import (
     before_after,
     dampm_report,
+    peers,
     real_case,
     step_cost,
     suite,
@@ -21,6 +22,7 @@ COMMANDS: dict[str, ModuleType] = {
     "dampm-report": dampm_report,
     "real-case": real_case,
     "before-after": before_after,
+    "peers": peers,
 }
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 

@@ -139,33 +139,49 @@ def thacker_two_periods(n: int, method: str, comm) -> Level:
 def mangeney(nx: int, method: str, comm) -> Level:
     """L1 of h (per metre of width) where the upstream wall has not yet disturbed the flow."""
     from fem_runout.references import mangeney as ref
+
+    case, r, err, front = _incline(
+        ref.case_dict(nx), method, comm,
+        lambda x, t, g: ref.depth(x, t, ref.H0, ref.X0, ref.SLOPE, ref.MU, g),
+        lambda t, g: ref.valid_from(t, ref.H0, ref.SLOPE, ref.MU, 0.0, g))
+    exact = ref.front(r.t, ref.H0, ref.X0, ref.SLOPE, ref.MU, case.gravity)
+    return _level(f"{nx}×2", case, r, err, front=front, exact_front=exact)
+
+
+def _incline(case_dict: dict, method: str, comm, exact, valid_from, scale: float = 1.0):
+    """Run a dam break on an incline: ``(case, result, L1 of h where valid, front × scale)``."""
     from fem_runout.references.norms import l1, nodal_weights
 
-    case, r = _run(ref.case_dict(nx), method, comm)
+    case, r = _run(case_dict, method, comm)
     vals = None
     if r.x is not None:
         g = case.gravity
-        exact = ref.depth(r.x, r.t, ref.H0, ref.X0, ref.SLOPE, ref.MU, g)
-        keep = r.x >= ref.valid_from(r.t, ref.H0, ref.SLOPE, ref.MU, 0.0, g) + 1.0
+        keep = r.x >= valid_from(r.t, g) + 1.0
         wet = r.x[r.h > 1e-3]
-        vals = (l1((r.h - exact)[keep], nodal_weights(r.x, r.y)[keep]),
-                float(wet.max()) if wet.size else math.nan,
-                ref.front(r.t, ref.H0, ref.X0, ref.SLOPE, ref.MU, g))
+        vals = (l1((r.h - exact(r.x, r.t, g))[keep], nodal_weights(r.x, r.y)[keep]),
+                float(wet.max()) * scale if wet.size else math.nan)
     vals = _bcast(comm, vals)
-    return _level(f"{nx}×2", case, r, vals[0], front=vals[1], exact_front=vals[2])
+    return case, r, vals[0], vals[1]
 
 
 def voellmy_sheet(nx: int, method: str, comm) -> Level:
     """Relative error of the sheet speed (mean over the window) at 3 relaxation times."""
     from fem_runout.references import voellmy_sheet as ref
 
-    case, r = _run(ref.case_dict(nx), method, comm)
+    return _sheet(nx, method, comm, ref.case_dict(nx), ref.WINDOW,
+                  lambda t, g: ref.speed(t, 0.3, 0.1, 500.0, 1.0, g))
+
+
+def _sheet(nx: int, method: str, comm, case_dict: dict, window: tuple[float, float],
+           exact, scale: float = 1.0) -> Level:
+    """Relative error of a sliding sheet's mean speed on ``window`` (× ``scale``)."""
+    case, r = _run(case_dict, method, comm)
     err = None
     if r.x is not None:
-        win = (r.x >= ref.WINDOW[0]) & (r.x <= ref.WINDOW[1])
-        u = float(np.mean(r.hu[win] / r.h[win]))
-        exact = ref.speed(r.t, 0.3, 0.1, 500.0, 1.0, case.gravity)
-        err = (abs(u / exact - 1.0), u, exact)
+        win = (r.x >= window[0]) & (r.x <= window[1])
+        speed = float(np.mean(r.hu[win] / r.h[win])) * scale
+        ref_speed = exact(r.t, case.gravity)
+        err = (abs(speed / ref_speed - 1.0), speed, ref_speed)
     err = _bcast(comm, err)
     return _level(f"{nx}×2", case, r, err[0], speed=err[1], exact=err[2])
 
@@ -232,3 +248,42 @@ def lake_at_rest(n: int, method: str, comm) -> Level:
                 "hu_linf": linf(r.hu), "hv_l1": l1(r.hv, w), "hv_linf": linf(r.hv)}
     vals = _bcast(comm, vals)
     return _level(f"{n}×{n}", case, r, vals["h_l1"], **vals)
+
+
+def voellmy_slope(nx: int, method: str, comm) -> Level:
+    """Relative error of the speed along the bed on the window, at 3 relaxation times."""
+    from fem_runout.references import slope as ref
+
+    return _sheet(nx, method, comm, ref.sheet_case(nx), ref.SHEET_WINDOW,
+                  lambda t, g: ref.sheet_speed(t, g=g),
+                  1.0 / math.cos(math.radians(ref.SHEET_THETA)))
+
+
+def energy_line(nx: int, method: str, comm) -> Level:
+    """``|tan α / μ − 1|`` of the block's centre of mass once at rest."""
+    from fem_runout.references import slope as ref
+    from fem_runout.references.norms import nodal_weights
+
+    case, r = _run(ref.line_case(nx), method, comm)
+    vals = None
+    if r.x is not None:
+        w = nodal_weights(r.x, r.y)
+        x0, x1, h = ref.LINE_BLOCK
+        h0 = np.where((r.x > x0) & (r.x < x1), h, 0.0)
+        tan = ref.travel_tangent(r.x, h0, r.x, r.h, w)
+        vals = (abs(tan / ref.LINE_MU - 1.0), tan, float(r.t))
+    vals = _bcast(comm, vals)
+    return _level(f"{nx}×2", case, r, vals[0], tan_alpha=vals[1], stop_time=vals[2])
+
+
+def mangeney_slope(nx: int, method: str, comm) -> Level:
+    """L1 of the vertical depth per metre of width at t = 2 s, away from the upstream wall."""
+    from fem_runout.references import slope as ref
+
+    case, r, err, front = _incline(ref.mangeney_case(nx), method, comm,
+                                   lambda x, t, g: ref.mangeney_depth(x, t, g),
+                                   ref.mangeney_valid_from,
+                                   1.0 / math.cos(math.radians(ref.MANG_THETA)))
+    ours, sh = ref.mangeney_fronts(r.t, case.gravity)
+    return _level(f"{nx}×2", case, r, err, front_along_slope=front, exact_front=ours,
+                  savage_hutter_front=sh)

@@ -55,6 +55,22 @@ REFERENCES = {
         "speed sqrt(ξ h (S − μ)) = 10 m/s. Measured at 3 relaxation times (u = 0.995 u_∞) on "
         "the part of the 400 m strip that the boundaries have not yet reached. The solution is "
         "uniform in space: this measures the time integration (the step is ∝ dx)."),
+    "slope": (
+        "Reference (`fem_runout/references/slope.py`, the slope-consistent form of "
+        "`physics/slope.py`, `model.form: slope`): on a plane the form has G = g cos²θ, "
+        "Coulomb friction μ g cos²θ on the horizontal momentum and the drag g |U|²/ξ. "
+        "**Voellmy sheet**: 1 m slope-normal layer on 35°, μ = 0.2, ξ = 500; "
+        "U(t) = U∞ tanh(t/τ), U∞ = sqrt(ξ h_n (sinθ − μ cosθ)) = 14.3 m/s (Voellmy; the "
+        "terminal speed of RAMMS and com1DFA); measured at 3 τ along the bed. **Energy line**: "
+        "a 0.2 m × 20 m Coulomb block (μ = 0.3) released at rest on a 35° slope that bends "
+        "(Z = tanθ (L/2) ln(1 + e^(−2(x − 300)/L)), L = 20 m) into a flat run-out; the bed "
+        "reaction does no work and friction removes μ g per metre of horizontal travel, so "
+        "the centre of mass stops on tan α = μ (an independent finite-volume solver gives "
+        "0.29998 at 19 200 cells). **Mangeney**: 1 m slope-normal reservoir on 30°, μ = 0.2, "
+        "t = 2 s; the 1-D slope form is the seed's system with g → g cos²θ, so the exact "
+        "depth is Mangeney's formula with that gravity; along the slope its front "
+        "ξ0 + 2 sqrt(g h_n/cosθ) t + g (sinθ − μ cosθ) t²/2 is reported beside "
+        "Savage–Hutter's (with sqrt(g h_n cosθ)), see docs/method.md."),
     "shear_decay": (
         "Reference (`fem_runout/references/shear_decay.py`): with τ_Y = 0 the Bingham stress "
         "is Newtonian and a shear flow u = U cos(k y), v = 0 on a flat bed with uniform depth "
@@ -109,6 +125,22 @@ well-balancing; both pass every hard case.
   1e-14). Hemisphere: the front radius is the same along x, y and −x to the bit, and the
   diagonal agrees within one diagonal cell; the radius (14.5 m) is larger than the paper's
   "about 13 m diameter", which cannot be reconciled with any 1e-3 m threshold.
+
+- The synchronized limiter of session 7 (docs/limiter.md, "Synchronized limiting") made the
+  Stoker 100:1 error converge (it stalled at 0.0055–0.0077 beyond 200 cells) and Stoker 10:1
+  8–34 % smaller; the other ladders moved by less than 1 %.
+
+**Slope-consistent form (issue 14; `model.form: slope`, the default with a DEM).** Both
+methods converge to the three exact references of the form (tables above): the Voellmy sheet
+on 35° to the terminal-speed law U∞ = sqrt(ξ h_n (sinθ − μ cosθ)) (TG2-PC first order — the
+same time-integration error as on the seed's sheet —, DAMPM within 5e-4); the Coulomb block
+from 35° onto a flat run-out to the energy line tan α = μ; Mangeney's dam break on 30° to the
+exact solution of the slope form (first order, dry front). The front columns of the last
+table give the slope form's exact tip along the slope beside Savage–Hutter's: the slope form
+keeps the horizontal lake at rest, and so moves a dam-break tip on 30° 10 % further in 2 s
+(43.0 against 41.2 m along the slope; docs/method.md, "What the choice gives up"). Before
+the synchronized limiter TG2-PC's energy-line error grew under refinement (6 %, 12 %, 18 % at
+200–800 cells).
 
 **Accuracy of DAMPM.**
 - Converges at first order: Ritter {mpm_ritter_orders}, Coulomb incline {mpm_mangeney_orders},

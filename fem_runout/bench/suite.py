@@ -60,6 +60,16 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("lake_at_rest", "Lake at rest (seed §4.2), Voellmy + Bingham",
               "L1 of the free-surface error on wet nodes after 1 s [m³]", "lake_at_rest",
               (25, 50, 100), ladders.lake_at_rest, claims_order=False),
+    Benchmark("voellmy_slope", "Slope form: Voellmy sheet on 35°",
+              "relative error of the mean speed along the bed on 450 <= x <= 650 m at 3 "
+              "relaxation times (exact sqrt(ξ h_n (sinθ − μ cosθ)) tanh(t/τ))", "slope",
+              (100, 200, 400, 800), ladders.voellmy_slope),
+    Benchmark("energy_line", "Slope form: Coulomb block from 35° onto a flat run-out",
+              "|tan α / μ − 1| of the centre of mass at rest (energy line tan α = μ)",
+              "slope", (200, 400, 800, 1600), ladders.energy_line),
+    Benchmark("mangeney_slope", "Slope form: Mangeney's dam break on 30°",
+              "L1 of h per metre of width at t = 2 s, where the upstream wall has not yet "
+              "acted [m²]", "slope", (60, 120, 240, 480), ladders.mangeney_slope),
 )
 
 

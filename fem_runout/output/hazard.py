@@ -28,7 +28,18 @@ if TYPE_CHECKING:
 __all__ = ["MAP_NAMES", "NODATA", "GridTarget", "HazardMaps", "map_summary", "write_rasters"]
 
 NODATA = -9999.0
-MAP_NAMES = ("peak_depth", "peak_speed", "peak_pressure", "deposit_depth", "arrival_time")
+MAP_NAMES = ("peak_depth", "peak_depth_normal", "peak_speed", "peak_pressure", "deposit_depth",
+             "arrival_time")
+#: What each map holds (the GeoTIFF band description): GIS users compare depth maps of
+#: models that report vertical depths with those of slope-normal thicknesses.
+MAP_DESCRIPTIONS = {
+    "peak_depth": "peak flow depth, vertical [m]",
+    "peak_depth_normal": "peak flow thickness normal to the bed, vertical depth x cos(slope) [m]",
+    "peak_speed": "peak speed, horizontal velocity [m/s]",
+    "peak_pressure": "peak pressure rho v^2 [Pa]",
+    "deposit_depth": "final depth, vertical [m]",
+    "arrival_time": "first time the depth exceeds output.front_threshold [s]",
+}
 
 
 @dataclass(frozen=True)
@@ -96,6 +107,8 @@ def write_rasters(maps: dict[str, np.ndarray], target: GridTarget, out_dir: Path
             extra = {"compress": "deflate"} if driver == "GTiff" else {}
             with rasterio.open(path, "w", driver=driver, **profile, **extra) as dst:
                 dst.write(values.astype(np.float64), 1)
+                if driver == "GTiff" and name in MAP_DESCRIPTIONS:
+                    dst.set_band_description(1, MAP_DESCRIPTIONS[name])
             written.append(path)
     return written
 
@@ -109,6 +122,14 @@ def _node_areas(shape: tuple[int, int], extent: tuple[float, float, float, float
     wx[[0, -1]] *= 0.5
     wy[[0, -1]] *= 0.5
     return np.outer(wy, wx)
+
+
+def bed_cosine(z: np.ndarray, extent: tuple[float, float, float, float]) -> np.ndarray:
+    """``cosθ = 1/sqrt(1 + |∇Z|²)`` on a node grid (central differences, one-sided on edges)."""
+    ny, nx = z.shape[0] - 1, z.shape[1] - 1
+    dx, dy = (extent[1] - extent[0]) / nx, (extent[3] - extent[2]) / ny
+    gy, gx = np.gradient(z, dy, dx)
+    return 1.0 / np.sqrt(1.0 + gx * gx + gy * gy)
 
 
 def map_summary(g: dict[str, np.ndarray], extent: tuple[float, float, float, float],
@@ -210,6 +231,8 @@ class HazardMaps:
         extent = self.case.domain.extent or (0.0, 1.0, 0.0, 1.0)
         g = {k: np.reshape(v, (ny + 1, nx + 1)) for k, v in nodes.items()}
         summary = map_summary(g, extent, self.threshold)
+        g["peak_depth_normal"] = g["peak_depth"] * bed_cosine(g["z"], extent)
+        summary["peak_depth_normal_max"] = float(g["peak_depth_normal"].max())
         if self.out_dir is None:
             return summary
         target = target_for(self.case)

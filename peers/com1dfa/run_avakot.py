@@ -57,7 +57,14 @@ def parse_args():
     p.add_argument("--work", default="/tmp/com1dfa_avakot", help="work folder (AvaFrame avalanche dir is created in it)")
     p.add_argument("--data", default=str(DEFAULT_DATA), help="data folder containing avaKot/ (env FEM_RUNOUT_DATA)")
     p.add_argument("--no-report", action="store_true", help="skip AvaFrame's plots/report (FLAGS savePlot/createReport)")
-    return p.parse_args()
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.key=value",
+                   help="extra com1DFA setting for a sensitivity run, e.g. GENERAL.viscOption=0")
+    args = p.parse_args()
+    for item in args.set:
+        key, value = item.split("=", 1)
+        section, name = key.split(".", 1)
+        OVERRIDES.setdefault(section, {})[name] = value
+    return args
 
 
 def check_outside_repo(path, what):

@@ -75,3 +75,11 @@ def test_migration_neither_loses_nor_duplicates_particles():
     assert watch.ok
     if WORLD.size > 1:
         assert watch.sent >= 10  # particles did change rank
+
+
+def test_slope_form_with_curvature_same_on_one_and_two_ranks():
+    """Slope-consistent form (issue 14) on a curved bed, DAMPM."""
+    _compare(case("inclined_dam_break", "method=mpm", "domain.cells=[120,8]", "time.end=3.0",
+                  "output.every=1.0", "model.form=slope", "model.curvature=true",
+                  "terrain.elevation=100 - x/3 + 0.002*(x - 60)**2 + 0.5*sin(y/4)",
+                  "material.friction={law: voellmy, mu: 0.2, xi: 500}"))

@@ -51,3 +51,11 @@ def test_voellmy_dam_break_same_on_one_and_two_ranks():
 def test_bingham_voellmy_dam_break_same_on_one_and_two_ranks():
     _compare(case("inclined_dam_break", "domain.cells=[120,8]", "time.end=2.0",
                   "output.every=1.0", *FULL))
+
+
+def test_slope_form_with_curvature_same_on_one_and_two_ranks():
+    """Slope-consistent form (issue 14) on a curved bed: nodal ∇Z and Hessian by cell sums."""
+    _compare(case("inclined_dam_break", "domain.cells=[120,8]", "time.end=3.0",
+                  "output.every=1.0", "model.form=slope", "model.curvature=true",
+                  "terrain.elevation=100 - x/3 + 0.002*(x - 60)**2 + 0.5*sin(y/4)",
+                  "material.friction={law: voellmy, mu: 0.2, xi: 500}"))
