@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -142,12 +143,16 @@ def _figure(maps: dict[str, tuple[np.ndarray, Any]], path: Path) -> None:
 def main(args: argparse.Namespace) -> int:
     """Compute the table (and figure), print it, write it between the doc's markers."""
     rows, maps = {}, {}
-    for spec in args.peer:
-        name, folder = spec.rsplit("=", 1)
-        rows[name], *maps[name] = _peer(Path(folder))
-    for spec in args.run:
-        name, folder = spec.rsplit("=", 1)
-        rows[name], *maps[name] = _ours(Path(folder), args.dem)
+    try:
+        for specs, read in ((args.peer, _peer), (args.run, lambda f: _ours(f, args.dem))):
+            for spec in specs:
+                name, sep, folder = spec.rpartition("=")
+                if not sep or not name:
+                    raise ValueError(f"expected NAME=DIR, got {spec!r}")
+                rows[name], *maps[name] = read(Path(folder))
+    except (OSError, ValueError, KeyError) as exc:  # rasterio's IO errors are OSErrors
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     table = _table(rows)
     print(table)
     if args.doc is not None:

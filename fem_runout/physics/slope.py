@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BedFrame", "SlopeGeometry", "nodal_gradient"]
+__all__ = ["BedFrame", "SlopeGeometry", "nodal_gradient", "slope_geometry"]
 
 
 @dataclass(frozen=True)
@@ -94,10 +94,6 @@ class SlopeGeometry:
         else:
             normal = self.g * self.cos
         return BedFrame(self.grad, self.cos, normal)
-
-    def subset(self, index: np.ndarray) -> SlopeGeometry:
-        """Return the geometry at some nodes (e.g. in another numbering)."""
-        return SlopeGeometry(self.grad[index], self.hess[index], self.g, self.curvature)
 
 
 def nodal_gradient(cell_sum, C: np.ndarray, cell_nodes: np.ndarray, lumped_mass: np.ndarray,
