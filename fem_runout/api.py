@@ -5,17 +5,22 @@ from __future__ import annotations
 import json
 import shutil
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fem_runout import methods
 from fem_runout.config import Case, dump_resolved, load_case
-from fem_runout.errors import CaseError
+from fem_runout.errors import CaseError, SimulationError
 
-IMPLEMENTED_METHODS = frozenset({"tg2", "mpm"})
+if TYPE_CHECKING:
+    from fem_runout.callbacks import Callback
+    from fem_runout.solver_api import Solver
 
-__all__ = ["IMPLEMENTED_METHODS", "RunResult", "load_case", "run"]
+__all__ = ["RunResult", "build_solver", "load_case", "run"]
 
 
 @dataclass
@@ -37,6 +42,8 @@ class RunResult:
         at_rest: The run stopped because the flow came to rest (``time.end: auto``).
         summary: Released, deposit and outflow volumes, peaks, affected area, run-out length
             (see ``summary.json``; the same on every rank).
+        error: Why the run stopped early (NaN, negative depth), with ``raise_errors=False``;
+            the fields are then the last good state. None for a complete run.
     """
 
     x: np.ndarray | None = None
@@ -55,6 +62,7 @@ class RunResult:
     particles: int | None = None
     at_rest: bool = False
     summary: dict = field(default_factory=dict)
+    error: str | None = None
 
 
 class _Progress:
@@ -95,20 +103,9 @@ def _prepare_out_dir(case: Case, comm, overwrite: bool) -> Path:
     return out
 
 
-def build_solver(case: Case, comm):
-    """Build the solver of ``case.method`` (collective)."""
-    if case.method not in IMPLEMENTED_METHODS:
-        raise CaseError(
-            f"method: '{case.method}' is not implemented yet; available: "
-            + ", ".join(sorted(IMPLEMENTED_METHODS))
-        )
-    if case.method == "mpm":
-        from mpm.build import build_mpm
-
-        return build_mpm(case, comm)
-    from fem_runout.tg2.solver import build_tg2
-
-    return build_tg2(case, comm)
+def build_solver(case: Case, comm) -> Solver:
+    """Build the solver of ``case.method`` from the method registry (collective)."""
+    return methods.get(case.method).build(case, comm)
 
 
 def run(
@@ -118,8 +115,13 @@ def run(
     quiet: bool = True,
     write: bool = True,
     comm=None,
+    callbacks: Sequence[Callback] = (),
+    raise_errors: bool = True,
 ) -> RunResult:
-    """Run a case (collective on ``comm``, default COMM_WORLD).
+    """Run a case (collective on ``comm``, default COMM_WORLD): the one run path.
+
+    The CLI, ``compare``, the hard cases and every bench command call this function; what is
+    written and recorded is chosen by the arguments and by extra callbacks.
 
     Args:
         case: A validated case, or a path/mapping given to :func:`load_case`.
@@ -127,69 +129,112 @@ def run(
         quiet: No progress bar and no summary.
         write: Write the output folder (fields, series, peaks, pictures).
         comm: MPI communicator.
+        callbacks: Extra callbacks (:class:`~fem_runout.callbacks.Callback`), called after
+            the built-in outputs and diagnostics.
+        raise_errors: Raise :class:`~fem_runout.errors.SimulationError` when the state goes
+            bad (NaN, negative depth); with False the run stops there and returns the last
+            good state with :attr:`RunResult.error` set.
 
     Returns:
         The final state and diagnostics (arrays on rank 0).
     """
     from mpi4py import MPI
 
-    from fem_runout.output import FieldWriter, PeakTracker, Pictures, SeriesRecorder, gather_nodal
-    from fem_runout.output.hazard import HazardMaps
-    from fem_runout.runner import Runner, Schedule
+    from fem_runout.runner import Runner
 
     comm = comm or MPI.COMM_WORLD
-    if not isinstance(case, Case):
-        case = load_case(case)
-    elif case.terrain.dem is not None and case.domain.extent is None:
-        from fem_runout.terrain.resolve import resolve_terrain
-
-        case = resolve_terrain(case)  # a Case built without load_case
+    case = _validated(case)
     solver = build_solver(case, comm)
     out = _prepare_out_dir(case, comm, overwrite) if write else None
-    thr = case.output.front_threshold
-    recorder = SeriesRecorder((out or Path(".")) / "series.csv", thr, case.material.density)
-    if out is None:
-        recorder.write_csv = lambda: None  # type: ignore[method-assign]
-    peaks = PeakTracker(out, thr)
-    callbacks = [recorder, peaks]
-    if out is not None:
-        callbacks.insert(
-            0, FieldWriter(out, solver, threshold=case.numerics.dry_tolerance, pvd=case.output.vtk)
-        )
-        if case.output.pictures:
-            callbacks.append(Pictures(out, case.name, recorder, peaks, threshold=thr))
-        if hasattr(solver, "particles"):
-            from mpm.output import ParticleWriter
-
-            callbacks.append(ParticleWriter(out))
-    hazard = HazardMaps(case, out if case.output.hazard else None, case.output.pictures)
-    callbacks.append(hazard)
-    t = case.time
-    schedule = Schedule(t.end_time, t.cfl, case.output.every, t.max_steps, t.dt_max,
-                        t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy)
+    outputs = _Outputs(case, solver, out)
     if not quiet:
         _say_released(solver, comm)
-    progress = _Progress(t.end_time, case.name) if (not quiet and comm.rank == 0) else None
-    runner = Runner(solver, schedule, callbacks, progress)
-    info = runner.run()
-    final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
-    envelope = peaks.gathered()
-    result = RunResult(series=recorder.series, wall_time=runner.wall_time, steps=info.step,
-                       t=info.t, out_dir=out, at_rest=runner.at_rest,
-                       particles=getattr(solver, "n_particles", None))
-    result.summary = {**hazard.summary, "t_end": info.t, "steps": info.step,
-                      "at_rest": runner.at_rest, "wall_time": runner.wall_time,
-                      "ranks": comm.size, "method": case.method,
-                      "particles": result.particles}
-    if out is not None and comm.rank == 0:
-        (out / "summary.json").write_text(json.dumps(result.summary, indent=2) + "\n")
-    if final is not None:
-        for key in ("x", "y", "h", "hu", "hv", "z"):
-            setattr(result, key, final[key])
-        result.peak_depth, result.peak_speed = envelope["peak_depth"], envelope["peak_speed"]
+    progress = _Progress(case.time.end_time, case.name) if (not quiet and comm.rank == 0) \
+        else None
+    runner = Runner(solver, schedule_of(case), [*outputs.callbacks, *callbacks], progress)
+    error = None
+    try:
+        info = runner.run()
+    except SimulationError as exc:
+        if raise_errors:
+            raise
+        error, info = str(exc), runner.info
+    result = outputs.result(case, runner, info, comm)
+    result.error = error
     if not quiet and comm.rank == 0:
         _summary(result, comm.size)
     return result
+
+
+def schedule_of(case: Case):
+    """Return the runner's :class:`~fem_runout.runner.Schedule` for a case's time and output."""
+    from fem_runout.runner import Schedule
+
+    t, thr = case.time, case.output.front_threshold
+    return Schedule(t.end_time, t.cfl, case.output.every, t.max_steps, t.dt_max,
+                    t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy)
+
+
+def _validated(case: Case | str | Path | dict) -> Case:
+    """Return a :class:`Case` from any accepted input (terrain resolved)."""
+    if not isinstance(case, Case):
+        return load_case(case)
+    if case.terrain.dem is not None and case.domain.extent is None:
+        from fem_runout.terrain.resolve import resolve_terrain
+
+        return resolve_terrain(case)  # a Case built without load_case
+    return case
+
+
+class _Outputs:
+    """The built-in callbacks of a run and the :class:`RunResult` they produce."""
+
+    def __init__(self, case: Case, solver: Solver, out: Path | None) -> None:
+        from fem_runout.output import FieldWriter, PeakTracker, Pictures, SeriesRecorder
+        from fem_runout.output.hazard import HazardMaps
+
+        thr = case.output.front_threshold
+        self.recorder = SeriesRecorder(out / "series.csv" if out else None, thr,
+                                       case.material.density)
+        self.peaks = PeakTracker(out, thr)
+        self.hazard = HazardMaps(case, out if case.output.hazard else None,
+                                 case.output.pictures)
+        self.out = out
+        self.callbacks: list = [self.recorder, self.peaks]
+        if out is not None:
+            self.callbacks.insert(0, FieldWriter(out, solver, threshold=case.numerics
+                                                 .dry_tolerance, pvd=case.output.vtk))
+            if case.output.pictures:
+                self.callbacks.append(Pictures(out, case.name, self.recorder, self.peaks,
+                                               threshold=thr))
+            if methods.get(case.method).particles:
+                from mpm.output import ParticleWriter
+
+                self.callbacks.append(ParticleWriter(out))
+        self.callbacks.append(self.hazard)
+
+    def result(self, case: Case, runner, info, comm) -> RunResult:
+        """Gather the final state and write ``summary.json`` (collective)."""
+        from fem_runout.output import gather_nodal
+
+        solver = runner.solver
+        final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
+        envelope = self.peaks.gathered()
+        result = RunResult(series=self.recorder.series, wall_time=runner.wall_time,
+                           steps=info.step, t=info.t, out_dir=self.out,
+                           at_rest=runner.at_rest, particles=solver.n_particles)
+        result.summary = {**self.hazard.summary, "t_end": info.t, "steps": info.step,
+                          "at_rest": runner.at_rest, "wall_time": runner.wall_time,
+                          "ranks": comm.size, "method": case.method,
+                          "particles": result.particles}
+        if self.out is not None and comm.rank == 0:
+            (self.out / "summary.json").write_text(json.dumps(result.summary, indent=2) + "\n")
+        if final is not None:
+            for key in ("x", "y", "h", "hu", "hv", "z"):
+                setattr(result, key, final[key])
+            result.peak_depth = envelope["peak_depth"]
+            result.peak_speed = envelope["peak_speed"]
+        return result
 
 
 def _say_released(solver, comm) -> None:

@@ -17,11 +17,14 @@ class StepInfo:
         t: Simulated time after the step [s].
         dt: Size of the step just taken (0 before the first step) [s].
         step: Number of steps taken so far.
+        solver_seconds: Wall time of the solver's part of the step just taken
+            (``stable_dt`` and ``advance``; 0 before the first step) [s].
     """
 
     t: float
     dt: float
     step: int
+    solver_seconds: float = 0.0
 
 
 class Callback(Protocol):

@@ -11,21 +11,18 @@ Input is fully validated before anything is written or any heavy module is impor
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fem_runout.errors import CaseError, SimulationError
+from fem_runout.methods import method_names
 
 if TYPE_CHECKING:
     from fem_runout.config import Case
 
 __all__ = ["build_parser", "main"]
-
-_FALLBACK_METHODS = frozenset({"tg2"})
-
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser."""
@@ -36,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("case", help="case file (YAML), e.g. cases/inclined_dam_break.yaml")
     parser.add_argument("--out", metavar="DIR", help="output directory (overrides output.dir)")
     parser.add_argument(
-        "--method", choices=("tg2", "mpm"), help="numerical method (overrides method)"
+        "--method", choices=method_names(), help="numerical method (overrides method)"
     )
     parser.add_argument(
         "--set",
@@ -84,17 +81,6 @@ class _World:
             self.comm.Abort(1)
 
 
-def _implemented_methods() -> frozenset[str]:
-    """Return the methods the runner implements (``fem_runout.api.IMPLEMENTED_METHODS``)."""
-    try:
-        api = importlib.import_module("fem_runout.api")
-    except ModuleNotFoundError as exc:
-        if exc.name in ("fem_runout.api", "fem_runout"):
-            return _FALLBACK_METHODS
-        raise
-    return frozenset(getattr(api, "IMPLEMENTED_METHODS", _FALLBACK_METHODS))
-
-
 def _check_output_dir(path: Path, overwrite: bool) -> None:
     """Refuse a non-empty output directory unless ``overwrite``; write nothing."""
     if not path.exists():
@@ -116,10 +102,6 @@ def _prepare(args: argparse.Namespace) -> Case:
         overrides.append(("output.dir", args.out))
     case = load_case(args.case, overrides)
     _check_output_dir(case.output_dir, args.overwrite)
-    methods = _implemented_methods()
-    if case.method not in methods:
-        available = ", ".join(sorted(methods))
-        raise CaseError(f"method '{case.method}' is not implemented yet; available: {available}")
     return case
 
 

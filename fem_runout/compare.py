@@ -1,6 +1,6 @@
 """``python -m fem_runout compare CASE.yaml [--out DIR] [--overwrite] [--set k=v ...]``.
 
-Runs one case with every implemented method (``fem_runout.api.IMPLEMENTED_METHODS``), each
+Runs one case with every registered method (:mod:`fem_runout.methods`), each
 into ``<out>/<method>/``, and writes ``<out>/compare.md`` with side-by-side depth maps, the
 depth difference, front position, volume balance and wall time of each method. Methods that are
 not implemented yet get a column saying so. Exit codes as for a run: 0, 1, 2 (bad input), 3.
@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from fem_runout.errors import CaseError, SimulationError
+from fem_runout.methods import method_names
 
-ALL_METHODS = ("tg2", "mpm")
+ALL_METHODS = method_names()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +36,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, Any]]:
     """Validate the case for each implemented method; raise CaseError on bad input."""
-    from fem_runout.api import IMPLEMENTED_METHODS
     from fem_runout.config import load_case
 
     base = load_case(args.case, list(args.overrides))
@@ -43,7 +43,7 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, Any]]:
     if out.exists() and not out.is_dir():
         raise CaseError(f"output dir '{out}' exists and is not a directory")
     cases = {}
-    for method in sorted(IMPLEMENTED_METHODS):
+    for method in method_names():
         case = load_case(args.case, [*args.overrides, ("method", method),
                                      ("output.dir", str(out / method))])
         if case.output_dir.exists() and any(case.output_dir.iterdir()) and not args.overwrite:

@@ -40,6 +40,17 @@ class Side:
     weight: np.ndarray
 
 
+def zero_wall_normal(sides, mx: np.ndarray, my: np.ndarray) -> None:
+    """Zero the wall-normal component of a nodal vector (mx, my) on the wall sides, in place.
+
+    The walls of a rectangle are axis-aligned: an x-normal wall zeroes ``mx``, a y-normal wall
+    ``my`` (a corner node of two walls loses both). ``mx``, ``my`` may be column views.
+    """
+    for side in sides:
+        if side.kind == "wall":
+            (mx if side.normal[0] != 0.0 else my)[side.nodes] = 0.0
+
+
 @dataclass
 class Discretization:
     """Mesh, spaces and precomputed arrays of a structured run.

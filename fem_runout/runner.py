@@ -74,9 +74,13 @@ def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, f
 class Runner:
     """Drive a solver through a schedule with callbacks.
 
+    Attributes:
+        info: Where the run is (the last good step after a SimulationError).
+        wall_time: Seconds spent in :meth:`run`.
+        at_rest: The run stopped because the flow came to rest.
+
     Args:
-        solver: Any object following :class:`~fem_runout.solver_api.Solver`, plus
-            ``snapshot()``, ``restore()`` and ``health()``.
+        solver: Any object following :class:`~fem_runout.solver_api.Solver`.
         schedule: Time control.
         callbacks: Outputs and diagnostics, called in order.
         progress: Optional object with ``update(info)`` and ``close()`` (rank 0 progress bar).
@@ -91,6 +95,7 @@ class Runner:
         self.progress = progress
         self.wall_time = 0.0
         self.at_rest = False
+        self.info = StepInfo(0.0, 0.0, 0)
         self._rest_since: float | None = None
         self._peak_energy = 0.0
 
@@ -106,15 +111,17 @@ class Runner:
         """
         s, solver = self.schedule, self.solver
         start = time.perf_counter()
-        info = StepInfo(0.0, 0.0, 0)
+        info = self.info = StepInfo(0.0, 0.0, 0)
         self._call("start", info)
         self._call("output", info)
         n_out, last_output = 1, 0.0
         eps = 1e-12 * max(s.end, 1.0)
         while info.t < s.end - eps and (s.max_steps is None or info.step < s.max_steps):
-            dt = self._next_dt(info.t, n_out * s.every)
             snap = solver.snapshot()
+            clock = time.perf_counter()
+            dt = self._next_dt(info.t, n_out * s.every)
             solver.advance(dt)
+            clock = time.perf_counter() - clock
             problem = solver.health()
             if problem is not None:
                 solver.restore(snap)
@@ -124,7 +131,7 @@ class Runner:
                     f"stopped at t = {info.t:.6g} s (step {info.step + 1}): {problem}; the last "
                     "good state was saved"
                 )
-            info = StepInfo(info.t + dt, dt, info.step + 1)
+            info = self.info = StepInfo(info.t + dt, dt, info.step + 1, clock)
             self._call("step", info)
             if info.t >= n_out * s.every - eps or info.t >= s.end - eps:
                 self._call("output", info)

@@ -1,26 +1,40 @@
-"""The contract between a solver (TG2-PC, DAMPM) and the runner, outputs and diagnostics."""
+"""The contract between a method's solver and everything else (runner, outputs, bench).
+
+A method (:mod:`fem_runout.methods`) builds an object that follows :class:`Solver`: the runner
+(:mod:`fem_runout.runner`), the outputs and diagnostics (:mod:`fem_runout.output`), ``compare``
+and every bench command use nothing else. Methods that carry material points also follow
+:class:`ParticleSolver` (``Method.particles``), which the particle output reads.
+
+Queries (``stable_dt``, ``health``, ``snapshot``, ``n_particles``) change no state: calling
+them any number of times leaves the next ``advance`` identical (tested for every registered
+method in ``tests/test_methods.py``).
+"""
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
+__all__ = ["ParticleSolver", "Solver"]
 
+
+@runtime_checkable
 class Solver(Protocol):
-    """What every method exposes to the runner.
+    """What every method exposes.
 
     Attributes:
         comm: The communicator of the run.
-        mesh: The structured quadrilateral mesh.
+        mesh: The quadrilateral mesh.
         V: The scalar Q1 space; every field below lives on it.
         fields: Q1 functions ``h``, ``hu``, ``hv``, ``z`` (ghost values up to date after
-            ``advance``).
+            ``advance``); outputs read them, only the solver writes them.
         lumped_mass: Lumped Q1 mass (nodal area) for the local nodes, owned then ghosts.
         outflow_volume: Volume that has left through open boundaries so far (global, the same
             on every rank).
+        n_particles: Global particle count (collective), or None for a mesh-only method.
     """
 
     comm: MPI.Comm
@@ -28,7 +42,16 @@ class Solver(Protocol):
     V: fem.FunctionSpace
     fields: dict[str, fem.Function]
     lumped_mass: np.ndarray
-    outflow_volume: float
+
+    @property
+    def outflow_volume(self) -> float:
+        """Volume that has left through open boundaries so far [m³] (global)."""
+        ...
+
+    @property
+    def n_particles(self) -> int | None:
+        """Global particle count (collective), or None for a mesh-only method."""
+        ...
 
     def stable_dt(self) -> float:
         """Largest stable time step for the current state (collective, same on all ranks)."""
@@ -36,4 +59,36 @@ class Solver(Protocol):
 
     def advance(self, dt: float) -> None:
         """Advance the state by ``dt`` (collective)."""
+        ...
+
+    def snapshot(self) -> Any:
+        """Return a copy of the whole state, for :meth:`restore` (local, no MPI)."""
+        ...
+
+    def restore(self, snap: Any) -> None:
+        """Return to a :meth:`snapshot` (collective: ghost values are refreshed)."""
+        ...
+
+    def health(self) -> str | None:
+        """Return a message if the state is bad (NaN, negative depth, collapsed column), else None.
+
+        Collective; the same answer on every rank.
+        """
+        ...
+
+
+@runtime_checkable
+class ParticleSolver(Solver, Protocol):
+    """A :class:`Solver` that carries material points (``Method.particles``).
+
+    Attributes:
+        particles: This rank's particles (:class:`mpm.particles.Particles`).
+        grid: Where particles are located on the mesh (:class:`mpm.grid.ParticleGrid`).
+    """
+
+    particles: Any
+    grid: Any
+
+    def particle_elevation(self) -> np.ndarray:
+        """Terrain elevation at this rank's particles (local)."""
         ...

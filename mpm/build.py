@@ -6,12 +6,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.config import Case
-from fem_runout.mesh import build_discretization
-from fem_runout.parallel import agree_on_errors
-from fem_runout.physics.friction import friction_from_spec
-from fem_runout.physics.rheology import rheology_from_spec
-from fem_runout.physics.slope import slope_geometry
-from fem_runout.tg2.solver import initial_fields, resolved_thin_depth
+from fem_runout.problem import build_problem
 from mpm.grid import ParticleGrid
 from mpm.migrate import migrate
 from mpm.particles import seed_particles
@@ -38,27 +33,17 @@ def still_water_depth(case: Case, comm: MPI.Comm, coords: np.ndarray,
 
 
 def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
-    """Create the DAMPM solver of a case (collective)."""
-    disc = build_discretization(
-        comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
-    )
-    init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
-    x, y = disc.coords[:, 0], disc.coords[:, 1]
-    u_fn, v_fn = case.initial.velocity_fns()
-    u = np.broadcast_to(np.asarray(u_fn(x, y), float), x.shape)
-    v = np.broadcast_to(np.asarray(v_fn(x, y), float), x.shape)
+    """Create the DAMPM solver of a case (collective): the shared setup plus particles."""
+    pb = build_problem(case, comm)
+    disc, init = pb.disc, pb.init
     grid = ParticleGrid(disc)
     still = still_water_depth(case, comm, disc.coords, init["h"])
     # Gauss points make the lake at rest exact; elsewhere the alias-free uniform lattice
     layout = "uniform" if still is None else "gauss"
     num = case.numerics
-    particles = seed_particles(grid, init["h"], u, v, num.particles_per_direction, layout,
-                               num.dry_tolerance)
+    particles = seed_particles(grid, init["h"], *pb.velocity, num.particles_per_direction,
+                               layout, num.dry_tolerance)
     particles, _ = migrate(grid, particles)
-    friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
-    rheology = rheology_from_spec(case.material.rheology, case.material.density)
-    slope = slope_geometry(disc, init["z"], case.gravity, case.model.curvature) \
-        if case.slope_form else None
-    return MPMSolver(disc, grid, particles, init["z"], case.material.density, case.gravity,
-                     friction, rheology, still, num.flip, num.particles_per_direction,
-                     resolved_thin_depth(case, comm, init["h"]), slope)
+    return MPMSolver(disc, grid, particles, init["z"], case.material.density, pb.gravity,
+                     pb.friction, pb.rheology, still, num.flip, num.particles_per_direction,
+                     pb.thin_depth, pb.slope)

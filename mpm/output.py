@@ -12,8 +12,6 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from mpm.kernels import interpolate
-
 if TYPE_CHECKING:
     from fem_runout.callbacks import StepInfo
     from mpm.solver import MPMSolver
@@ -29,8 +27,7 @@ def gather_particles(solver: MPMSolver) -> dict[str, np.ndarray] | None:
     """
     p, comm = solver.particles, solver.comm
     x, y = p.positions(solver.grid)
-    b = solver._basis
-    local = {"x": x, "y": y, "z": interpolate(b.nodes, b.N, solver.z_g), "h": p.h, "u": p.u,
+    local = {"x": x, "y": y, "z": solver.particle_elevation(), "h": p.h, "u": p.u,
              "v": p.v, "volume": p.volume, "sxx": p.sxx, "syy": p.syy, "sxy": p.sxy,
              "rank": np.full(len(p), float(comm.rank)), "id": p.id.astype(np.float64)}
     counts = np.asarray(comm.allgather(len(p)), dtype=np.int64)

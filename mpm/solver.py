@@ -31,10 +31,11 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization
+from fem_runout.mesh import Discretization, zero_wall_normal
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
+from fem_runout.stepping import acceleration_limit
 from mpm.exact_sum import extractors
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
@@ -101,7 +102,6 @@ class MPMSolver:
         self.outflow_volume = 0.0
         self.sent = 0
         self._problem: str | None = None
-        self._pic_scale = 1.0
         self.walls = [s for s in self.nodal.sides if s.kind == "wall"]
         self.open_sides = [s for s in self.nodal.sides if s.kind == "open"]
         self._refresh()
@@ -118,6 +118,19 @@ class MPMSolver:
 
     def stable_dt(self) -> float:
         """``COURANT Δx / max(|v_p| + sqrt(g h_p))``, the slope and viscous limits."""
+        return self._step_limits()[0]
+
+    def particle_elevation(self) -> np.ndarray:
+        """Terrain elevation at this rank's particles (Q1 interpolation; local, no MPI)."""
+        b = self._basis
+        return interpolate(b.nodes, b.N, self.z_g)
+
+    def _step_limits(self) -> tuple[float, float]:
+        """``(stable step, transport step)`` of the current state (collective, no side effect).
+
+        The ratio sets the PIC share of :meth:`advance`: it damps per unit time as at the
+        transport step, whatever the viscous limit (docs/dampm.md, "FLIP/PIC blend").
+        """
         p = self.particles
         grav = self.g if self._gp is None else np.maximum(self._gp, self.g)
         speed = np.hypot(p.u, p.v) + np.sqrt(grav * p.h)
@@ -125,18 +138,21 @@ class MPMSolver:
         dx = min(self.disc.spacing)
         dt = COURANT * dx / top if top > 0 else np.inf
         slope = self.comm.allreduce(self._slope, op=MPI.MAX)
-        if slope > 0.0:  # from rest on the slope, at most half a cell per step
-            dt = min(dt, float(np.sqrt(dx / (self.g * slope))))
+        dt = min(dt, acceleration_limit(dx, self.g, slope))
         mu = self.rheology.viscosity if self.rheology is not None else 0.0
         transport = dt
         if mu > 0.0:  # the yield stress is bounded (|σ_Y| <= τ_Y): only μ limits the step
             dt = min(dt, VISCOUS * self.rho * dx * dx / (8.0 * mu))
-        # the PIC share damps every step: per unit time as at the transport step (below)
-        self._pic_scale = dt / transport if np.isfinite(transport) and transport > 0 else 1.0
-        return dt
+        return dt, transport
+
+    def _pic_scale(self) -> float:
+        """``Δt_stable / Δt_transport`` (collective), see :meth:`_step_limits`."""
+        dt, transport = self._step_limits()
+        return dt / transport if np.isfinite(transport) and transport > 0 else 1.0
 
     def advance(self, dt: float) -> None:
         """One USL step (see the module docstring)."""
+        scale = self._pic_scale() if self.flip > 0.0 else 1.0
         vx, vy = self._nodal_velocity(dt)
         p, b = self.particles, self._basis
         u, v, _ = g2p(b.nodes, b.N, b.dN, vx, vy)
@@ -147,7 +163,7 @@ class MPMSolver:
                             vy - self._nodal[:, 2] / safe)
             stopped = ((mass > 0.0) & (vx == 0.0) & (vy == 0.0)).astype(float)
             near = interpolate(b.nodes, b.N, stopped)
-            pic = (1.0 - self.flip) * self._pic_scale
+            pic = (1.0 - self.flip) * scale
             flip = np.where(near > 0.0, 0.0, 1.0 - pic)  # PIC next to nodes friction stopped
             u = flip * (p.u + du) + (1.0 - flip) * u
             v = flip * (p.v + dv) + (1.0 - flip) * v
@@ -189,8 +205,7 @@ class MPMSolver:
         fx, fy = self._open_side_pressure(g[:, 3], g[:, 4])
         vx = np.where(active, (g[:, 1] + dt * fx) / safe, 0.0)
         vy = np.where(active, (g[:, 2] + dt * fy) / safe, 0.0)
-        for side in self.walls:  # the wall reaction first: friction acts along the wall
-            (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
+        zero_wall_normal(self.walls, vx, vy)  # the wall reaction first: friction acts along it
         if self.friction is not None:
             h = np.where(active, mass / (self.rho * np.where(active, g[:, 5], 1.0)), 0.0)
             bed = None if self.slope_g is None else self.slope_g.frame(vx, vy)
@@ -234,8 +249,7 @@ class MPMSolver:
         safe = np.where(mass > 0.0, mass, 1.0)
         vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
         vy = np.where(mass > 0, mom[:, 1] / safe, 0.0)
-        for side in self.walls:
-            (vx if side.normal[0] != 0.0 else vy)[side.nodes] = 0.0
+        zero_wall_normal(self.walls, vx, vy)
         return vx, vy
 
     def _update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:

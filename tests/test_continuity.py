@@ -13,6 +13,7 @@ from mpi4py import MPI
 from fem_runout.api import run
 from fem_runout.bench.hard_cases import hard_case_files
 from fem_runout.config import load_case
+from fem_runout.methods import method_names
 from tests.tg2_helpers import CASES
 
 COMM = MPI.COMM_SELF
@@ -36,7 +37,7 @@ KNOWN = {
 PARAMS = [pytest.param(path, method, id=f"{path.stem}-{method}",
                        marks=[pytest.mark.xfail(strict=True, reason=KNOWN[(path.stem, method)])]
                        if (path.stem, method) in KNOWN else [])
-          for path in PATHS for method in ("tg2", "mpm")]
+          for path in PATHS for method in method_names()]
 
 
 def _final_depth(path, method, scale):

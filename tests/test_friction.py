@@ -1,12 +1,25 @@
-"""Bed friction (seed eq. 2): exact Coulomb stop, Voellmy terminal flow, per-node Newton."""
+"""Bed friction (seed eq. 2): Coulomb stop, Voellmy terminal flow, per-node Newton, registry."""
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fem_runout.config.schema import FrictionSpec
-from fem_runout.physics.friction import Coulomb, Voellmy, friction_from_spec, relaxed_sign
+from fem_runout.physics.friction import (
+    LAWS,
+    Coulomb,
+    FrictionLaw,
+    Parameter,
+    ParameterError,
+    Voellmy,
+    friction_from_spec,
+    relaxed_sign,
+)
+from fem_runout.physics.friction.base import GAMMA_DEFAULT
+from fem_runout.physics.friction.registry import Registry
 
 G = 9.81
 
@@ -187,3 +200,80 @@ def test_friction_from_spec():
     assert (law.mu, law.xi, law.gamma, law.gravity) == (0.2, 500.0, 1e-3, 9.8)
     with pytest.raises(ValueError):
         Voellmy(0.2, 0.0)
+
+
+# -- the registry -----------------------------------------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_registry_gives_the_schema_its_laws_and_keys():
+    assert LAWS.names() == ("coulomb", "voellmy", "manning")
+    assert list(FrictionSpec.model_fields) == ["law", "mu", "phi_deg", "xi", "n", "gamma"]
+    assert LAWS.users("mu") == ("coulomb", "voellmy") and LAWS.users("n") == ("manning",)
+    for law in LAWS:
+        assert issubclass(law, FrictionLaw) and law.name in LAWS
+
+
+def test_gamma_default_is_written_once_and_filled_for_the_laws_that_take_it():
+    sources = [*sorted((ROOT / "fem_runout/physics/friction").glob("*.py")),
+               ROOT / "fem_runout/config/schema.py"]
+    hits = [p.name for p in sources for line in p.read_text().splitlines()
+            if re.search(r"\b(1e-2|1\.0e-2|0\.01)\b", line)]
+    assert hits == ["base.py"]
+    assert FrictionSpec(law="coulomb", mu=0.1).gamma == GAMMA_DEFAULT == Coulomb(0.1).gamma
+    assert FrictionSpec(law="voellmy", mu=0.1, xi=9.0).gamma == Voellmy(0.1, 9.0).gamma
+    assert FrictionSpec(law="manning", n=0.1).gamma is None
+
+
+class _LinearDrag(FrictionLaw):
+    """A toy law for the registry: ``k = c/h`` (not registered in LAWS)."""
+
+    name = "linear"
+    parameters = (Parameter("c", "drag", "m/s", gt=0.0, required=True),
+                  Parameter("mu", "friction coefficient", ge=0.0))
+
+    def __init__(self, c, gravity=G):
+        super().__init__(0.0, gravity)
+        self.c = c
+
+    def drag_coefficient(self, h, bed):
+        return self.c / h
+
+
+def test_a_new_law_needs_only_its_class_and_one_registration():
+    reg = Registry("friction law")
+    reg.register(Coulomb)
+    reg.register(_LinearDrag)
+    assert reg.names() == ("coulomb", "linear")
+    assert [p.name for p in reg.parameters()] == ["mu", "phi_deg", "c", "gamma"]
+    reg.check("linear", {"c": 2.0})
+    with pytest.raises(ParameterError, match="required for law 'linear'") as info:
+        reg.check("linear", {})
+    assert info.value.key == "c"
+    with pytest.raises(ParameterError, match="not used by law 'coulomb'") as info:
+        reg.check("coulomb", {"mu": 0.1, "c": 1.0})
+    assert info.value.key == "c"
+    with pytest.raises(ParameterError, match="exactly one of mu or phi_deg"):
+        reg.check("coulomb", {"mu": 0.1, "phi_deg": 3.0})
+    assert reg.with_defaults("coulomb", {"mu": 0.1}) == {"mu": 0.1, "gamma": GAMMA_DEFAULT}
+    with pytest.raises(ValueError, match="already taken"):
+        reg.register(_LinearDrag)
+    clash = type("Clash", (_LinearDrag,), {"name": "clash",
+                                           "parameters": (Parameter("mu", "other", ge=1.0),)})
+    with pytest.raises(ValueError, match="clashes"):
+        reg.register(clash)
+    # the shared Newton update works for it: q + θ g (c/h) |q| q/h² = q*
+    law = _LinearDrag(0.5)
+    h, star = np.array([2.0]), np.array([3.0])
+    qx, _ = law.implicit_update(h, star, 0 * star, star, 0 * star, 0.1)
+    assert qx[0] + 0.1 * G * 0.25 * qx[0] ** 2 / 4.0 == pytest.approx(3.0, rel=1e-13)
+
+
+def test_every_law_and_key_is_documented_in_the_case_schema():
+    text = (ROOT / "docs/case_schema.md").read_text()
+    table = text[text.index("`material.friction`:"):text.index("`material.rheology`:")]
+    for law in LAWS:
+        assert f"`{law.name}`" in table
+        for p in law.parameters:
+            assert f"| `{p.name}` |" in table

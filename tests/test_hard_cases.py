@@ -11,15 +11,20 @@ weakened, and the mark turns into an error as soon as the case passes.
 import pytest
 from mpi4py import MPI
 
-from fem_runout.api import IMPLEMENTED_METHODS
-from fem_runout.bench.hard_cases import KNOWN_FAILURES, hard_case_files, run_hard_case
+from fem_runout.bench.hard_cases import (
+    KNOWN_FAILURES,
+    REST_SPEED,
+    hard_case_files,
+    run_hard_case,
+)
 from fem_runout.config import load_case
+from fem_runout.methods import method_names
 
 PARAMS = [
     pytest.param(path, method, id=f"{path.stem}-{method}",
                  marks=[pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[(path.stem, method)])]
                  if (path.stem, method) in KNOWN_FAILURES else [])
-    for path in hard_case_files() for method in sorted(IMPLEMENTED_METHODS)
+    for path in hard_case_files() for method in sorted(method_names())
 ]
 
 
@@ -35,4 +40,18 @@ def test_hard_case(path, method):
           f"volume error {r.volume_error:.1e}, max speed {r.max_speed:.3g} (bound "
           f"{r.speed_bound:.3g}), final speed {r.final_speed:.2e}")
     assert r.steps > 0
+    assert r.failures == [], r.failures
+
+
+@pytest.mark.parametrize("method", method_names())
+def test_a_hard_case_with_end_auto_stops_at_rest(method):
+    """The pit through the one run path with ``end: auto``: it stops at rest, before ``max``."""
+    path = next(p for p in hard_case_files() if p.stem == "pit")
+    case = load_case(path, [("method", method), ("time.end", "auto"), ("time.max", 40.0),
+                            ("time.rest_speed", REST_SPEED), ("time.rest_duration", 2.0)])
+    r = run_hard_case(case, MPI.COMM_SELF)
+    print(f"pit, end: auto [{method}]: stopped at t = {r.t:.3g} s (max {r.end:g}), "
+          f"final speed {r.final_speed:.2e}")
+    assert r.at_rest and r.t < r.end
+    assert r.final_speed <= REST_SPEED
     assert r.failures == [], r.failures

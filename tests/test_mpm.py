@@ -7,7 +7,8 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.api import build_solver, run
-from fem_runout.references.inclined_dam_break import PAPER_FRONT, exact_front
+from fem_runout.methods import get
+from fem_runout.references.inclined_dam_break import exact_front
 from fem_runout.references.norms import front_radius
 from fem_runout.runner import Runner, Schedule
 from tests.tg2_helpers import case, lake_errors
@@ -113,10 +114,10 @@ def test_inclined_dam_break_front_approaches_exact_tip():
         fronts[nx] = r.series["front_x"][-1]
     tip = exact_front(5.5)
     print(f"DAMPM fronts at 5.5 s: {fronts}, exact tip {tip:.1f}, paper DAMPM "
-          f"{PAPER_FRONT['dampm'][5.5]}")
+          f"{get("mpm").paper["front"][5.5]}")
     gaps = [tip - fronts[nx] for nx in (165, 330, 660, 1320)]
     assert gaps[0] > gaps[1] > gaps[2] > gaps[3] > -1.0
-    assert fronts[330] > PAPER_FRONT["dampm"][5.5]
+    assert fronts[330] > get("mpm").paper["front"][5.5]
 
 
 def test_particle_cloud_is_written_for_paraview(tmp_path, monkeypatch):

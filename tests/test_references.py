@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fem_runout.api import IMPLEMENTED_METHODS
 from fem_runout.bench import ladders
 from fem_runout.bench.suite_report import orders
+from fem_runout.methods import method_names
 from fem_runout.references import mangeney, shear_decay, thacker, voellmy_sheet
 from fem_runout.references.ritter import ritter_depth
 
 COMM = MPI.COMM_SELF
-METHODS = sorted(IMPLEMENTED_METHODS)
+METHODS = sorted(method_names())
 
 
 def _ladder(fn, params, method):

@@ -11,7 +11,8 @@ from mpi4py import MPI
 
 from fem_runout.config import load_case
 from fem_runout.errors import CaseError
-from fem_runout.tg2.solver import build_tg2, initial_fields
+from fem_runout.problem import initial_fields
+from fem_runout.tg2.solver import build_tg2
 from tests.terrain_helpers import RES, dem_case, grid_nodes, plane, write_dem, write_polygons
 
 TRIANGLE = shapely.Polygon([(1012.3, 1941.1), (1071.7, 1952.9), (1033.3, 1988.2)])

@@ -3,8 +3,18 @@
 import numpy as np
 import pytest
 
+from fem_runout.config import load_case
 from fem_runout.config.schema import RheologySpec
-from fem_runout.physics.rheology import Bingham, plug_ratio, rheology_from_spec, strain_rate
+from fem_runout.errors import CaseError
+from fem_runout.physics.rheology import (
+    RHEOLOGIES,
+    Bingham,
+    Rheology,
+    plug_ratio,
+    register_rheology,
+    rheology_from_spec,
+    strain_rate,
+)
 
 
 def _eq7(psi, a):
@@ -119,3 +129,35 @@ def test_rheology_from_spec():
     assert (law.viscosity, law.yield_stress, law.density, law.reg) == (3.0, 40.0, 1900.0, 1e-3)
     with pytest.raises(ValueError):
         Bingham(1.0, 1.0, 0.0)
+
+
+def test_rheology_registry_names_bingham_and_its_keys():
+    assert RHEOLOGIES.names() == ("bingham",)
+    assert [p.name for p in RHEOLOGIES.parameters()] == ["viscosity", "yield_stress"]
+    assert list(RheologySpec.model_fields) == ["law", "viscosity", "yield_stress"]
+    assert isinstance(Bingham(1.0, 2.0, 1000.0), Rheology)
+    law = rheology_from_spec(RheologySpec(law="bingham", viscosity=3.0, yield_stress=4.0), 1e3,
+                             reg=0.5)
+    assert law.reg == 0.5
+    with pytest.raises(ValueError, match="already taken"):
+        register_rheology(Bingham)
+
+
+@pytest.mark.parametrize(("rheology", "message"), [
+    ({"law": "bingham", "viscosity": 1},
+     "case: material.rheology.yield_stress: required for law 'bingham'"),
+    ({"law": "bingham", "viscosity": -1, "yield_stress": 1},
+     "case: material.rheology.viscosity: must be >= 0, got -1"),
+    ({"law": "none", "yield_stress": 1},
+     "case: material.rheology.yield_stress: not allowed with law 'none'"),
+    ({"law": "herschel"}, "case: material.rheology.law: 'herschel' is not a known law; "
+                          "allowed: none, bingham"),
+    ({"law": "bingham", "viscosity": 1, "yield_stress": 1, "n": 2},
+     "case: material.rheology.n: unknown key; allowed keys: law, viscosity, yield_stress"),
+])
+def test_bad_rheology_input_names_the_key(rheology, message):
+    case = {"name": "r", "domain": {"extent": [0, 1, 0, 1], "cells": [2, 2]},
+            "initial": {"depth": "1"}, "time": {"end": 1.0}, "material": {"rheology": rheology}}
+    with pytest.raises(CaseError) as info:
+        load_case(case)
+    assert str(info.value).startswith(message), str(info.value)

@@ -16,12 +16,13 @@ from fem_runout.bench import ladders
 from fem_runout.config import load_case
 from fem_runout.errors import CaseError
 from fem_runout.mesh import build_discretization
+from fem_runout.methods import method_names
 from fem_runout.physics.friction import Coulomb, Voellmy
 from fem_runout.physics.slope import BedFrame, slope_geometry
 from tests.tg2_helpers import case, lake_errors
 
 COMM = MPI.COMM_SELF
-METHODS = ("tg2", "mpm")
+METHODS = method_names()
 THETA = math.radians(35.0)
 
 

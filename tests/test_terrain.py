@@ -16,8 +16,8 @@ import yaml
 from fem_runout.config import dump_resolved, load_case
 from fem_runout.config.geo import DATA_ENV, data_folder
 from fem_runout.errors import CaseError
+from fem_runout.problem import initial_fields
 from fem_runout.terrain import read_raster
-from fem_runout.tg2.solver import initial_fields
 from tests.terrain_helpers import (
     RES,
     X0,
@@ -168,8 +168,8 @@ def test_avakot_case() -> None:
     area = np.full((ny + 1, nx + 1), case.domain.cell_size**2)
     # the 1.0 m is normal to the slope (thickness_normal): times cos(slope) it is the polygon
     # area x 1.0 m; the volume is com1DFA 2.1's for the same polygon (21 346 m³) within 2 %
-    from fem_runout.terrain.nodes import _inv_cos_slope
+    from fem_runout.terrain.nodes import inv_cos_slope
 
-    normal = h / _inv_cos_slope(case, x, y)
+    normal = h / inv_cos_slope(case, x, y)
     assert (normal * area).sum() == pytest.approx(15188.05685224, rel=1e-9)
     assert (h * area).sum() == pytest.approx(21346.32, rel=0.02)

@@ -5,7 +5,8 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.api import run
-from fem_runout.references.inclined_dam_break import PAPER_FRONT, exact_front
+from fem_runout.methods import get
+from fem_runout.references.inclined_dam_break import exact_front
 from fem_runout.references.norms import front_radius, l1, nodal_weights
 from fem_runout.references.ritter import ritter_depth
 from fem_runout.tg2.solver import build_tg2
@@ -105,12 +106,12 @@ def test_inclined_dam_break_front_approaches_exact_tip():
     for t in (2.75, 5.5, 8.25):
         row = [fronts[nx][t] for nx, _ in levels]
         print(f"t={t}: fronts {row} exact {exact_front(t):.1f} paper TG2(5.5 s) "
-              f"{PAPER_FRONT['tg2'][5.5]}")
+              f"{get("tg2").paper["front"][5.5]}")
         gaps = [exact_front(t) - f for f in row]
         # monotone approach, never past the tip; fronts are node positions (last node with
         # h > 1e-3), so two levels can tie (70.91 m at 330 and 660 cells at 2.75 s)
         assert gaps[0] >= gaps[1] >= gaps[2] > -1.0 and gaps[0] > gaps[2]
-    assert fronts[1320][5.5] > PAPER_FRONT["tg2"][5.5]
+    assert fronts[1320][5.5] > get("tg2").paper["front"][5.5]
 
 
 def _fronts(c, times):

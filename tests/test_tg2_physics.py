@@ -4,91 +4,34 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fem_runout.api import build_solver, run
+from fem_runout.api import run
 from fem_runout.config import load_case
+from fem_runout.methods import METHODS, method_names
 from fem_runout.references import shear_decay
-from fem_runout.runner import Runner, Schedule
-from tests.tg2_helpers import case, lake_errors
+from tests.tg2_helpers import G, case, lake_errors, probe, sheet
 
 COMM = MPI.COMM_SELF
-G = 9.81
 
 
-PROBE, WINDOW = 300.0, (250.0, 350.0)
-
-
-def _sheet(slope, friction, u0=0.0, h=1.0, end=1.0, cells=(800, 2), method="tg2",
-           right="open"):
-    """A uniform layer on the plane Z = -S x, 400 m long, open downstream.
-
-    Boundary disturbances travel at most at |u| + sqrt(g h) (< 15 m/s here): the probe region
-    [250, 350] m sees the uniform layer of the exact solutions for the whole run.
-    """
-    return load_case({
-        "name": "sheet", "gravity": G, "method": method,
-        "domain": {"extent": [0, 400, 0, 4], "cells": list(cells),
-                   "boundary": {"left": "wall", "right": right, "bottom": "wall",
-                                "top": "wall"}},
-        "terrain": {"elevation": f"-{slope} * x"},
-        "initial": {"depth": str(h), "velocity": [str(u0), "0"]},
-        "material": {"density": 1200, "friction": friction},
-        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
-    })
-
-
-class _Probe:
-    """Velocity of the centre node after every step."""
-
-    def __init__(self):
-        self.t, self.u = [0.0], []
-
-    def _u(self, s):
-        x = s.disc.coords
-        i = int(np.argmin(np.hypot(x[:, 0] - PROBE, x[:, 1] - 2.0)))
-        own = slice(0, s.disc.n_owned_nodes)
-        h, hu = s.fields["h"].x.array, s.fields["hu"].x.array
-        interior = (x[own, 0] > WINDOW[0]) & (x[own, 0] < WINDOW[1])
-        return hu[i] / h[i], np.abs(hu[own][interior] / h[own][interior]).max()
-
-    def start(self, s, i):
-        self.u.append(self._u(s))
-
-    def step(self, s, i):
-        self.t.append(i.t)
-        self.u.append(self._u(s))
-
-    def output(self, s, i):
-        pass
-
-    def finish(self, s, i):
-        pass
-
-
-def _probe(c):
-    solver = build_solver(c, COMM)
-    probe = _Probe()
-    Runner(solver, Schedule(c.time.end, c.time.cfl, c.output.every), [probe]).run()
-    return np.array(probe.t), np.array([u for u, _ in probe.u]), np.array([m for _, m in probe.u])
-
-
-@pytest.mark.parametrize("method", ["tg2", "mpm"])
+@pytest.mark.parametrize("method", method_names())
 def test_voellmy_sheet_reaches_the_tanh_law(method):
     slope, mu, xi, h = 0.3, 0.1, 500.0, 1.0
     a, b = G * (slope - mu), G / (xi * h)
     t_end = 3.0 / np.sqrt(a * b)
-    c = _sheet(slope, {"law": "voellmy", "mu": mu, "xi": xi}, end=t_end, method=method)
-    t, u, _ = _probe(c)
+    c = sheet(slope, {"law": "voellmy", "mu": mu, "xi": xi}, end=t_end, method=method)
+    t, u, _ = probe(c)
     exact = np.sqrt(a / b) * np.tanh(np.sqrt(a * b) * t_end)
     print(f"{method} Voellmy sheet at 3 relaxation times: u = {u[-1]:.4f}, exact "
           f"{exact:.4f}, rel. error {abs(u[-1] / exact - 1):.2e}, steps {len(t) - 1}")
     assert abs(u[-1] / exact - 1.0) < 5e-3
 
 
-def test_coulomb_stop_time_and_no_creep():
+@pytest.mark.parametrize("method", [m.name for m in METHODS.values() if not m.particles])
+def test_coulomb_stop_time_and_no_creep(method):
     slope, mu, u0 = 0.1, 0.3, 5.0
     t_stop = u0 / (G * (mu - slope))
-    c = _sheet(slope, {"law": "coulomb", "mu": mu}, u0=u0, end=2.0 * t_stop)
-    t, u, umax = _probe(c)
+    c = sheet(slope, {"law": "coulomb", "mu": mu}, u0=u0, end=2.0 * t_stop, method=method)
+    t, u, umax = probe(c)
     k = np.flatnonzero(u == 0.0)[0]  # first step that ends at rest
     # the stop lies between steps: zero crossing of the (linear) deceleration before it
     rate = (u[k - 2] - u[k - 1]) / (t[k - 1] - t[k - 2])
@@ -101,10 +44,10 @@ def test_coulomb_stop_time_and_no_creep():
     assert np.abs(umax[k:]).max() <= 1e-12  # every interior node stays at rest
 
 
-@pytest.mark.parametrize("method", ["tg2", "mpm"])
+@pytest.mark.parametrize("method", method_names())
 def test_layer_below_yield_never_moves(method):
-    c = _sheet(0.1, {"law": "coulomb", "phi_deg": 26.0}, end=3.0, method=method)
-    t, u, umax = _probe(c)
+    c = sheet(0.1, {"law": "coulomb", "phi_deg": 26.0}, end=3.0, method=method)
+    t, u, umax = probe(c)
     print(f"{method} max interior speed of a held layer:", umax.max())
     assert umax.max() <= 1e-12
 

@@ -39,17 +39,33 @@ def hard_case_files() -> list[Path]:
     return sorted(HARD_DIR.glob("*.yaml"))
 
 
-class _Watch:
-    """Callback: minimum depth and NaN count of the local owned nodes after every step."""
+class Watch:
+    """Callback: minimum depth and NaN count of the owned nodes after every step.
 
-    def __init__(self) -> None:
+    At start (collective) it also measures the initial state's elevation range, its
+    free-fall speed and particle count.
+
+    Args:
+        gravity: ``g`` [m/s²].
+    """
+
+    def __init__(self, gravity: float) -> None:
+        self.gravity = gravity
         self.min_h = math.inf
         self.nan = 0
+        self.fall_speed = math.nan
+        self.elevation_range = math.nan
+        self.particles: int | None = None
 
     def start(self, solver, info) -> None:
+        """Measure the initial state and check it."""
+        self.fall_speed = _fall_speed(solver, solver.comm, self.gravity)
+        self.elevation_range = _elevation_range(solver, solver.comm)
+        self.particles = solver.n_particles  # collective
         self.step(solver, info)
 
     def step(self, solver, info) -> None:
+        """Check the state after a step (local, no communication)."""
         own = slice(0, solver.V.dofmap.index_map.size_local)
         arrays = [solver.fields[k].x.array[own] for k in ("h", "hu", "hv")]
         self.nan += int(sum(np.count_nonzero(~np.isfinite(a)) for a in arrays))
@@ -57,10 +73,10 @@ class _Watch:
             self.min_h = min(self.min_h, float(np.nanmin(arrays[0])))
 
     def output(self, solver, info) -> None:
-        pass
+        """Nothing at outputs."""
 
     def finish(self, solver, info) -> None:
-        pass
+        """Nothing at the end."""
 
 
 @dataclass
@@ -77,7 +93,9 @@ class HardResult:
         max_speed: max over the run of the node speed; speed_bound: the allowed bound.
         fall_speed: free fall from the top of the release to the lowest bed plus the
             release's wave speed, ``sqrt(2 g (Z_top - Z_min)) + sqrt(g h0)``.
-        final_speed: max speed at the end; particles: particle count (None for mesh methods).
+        final_speed: max speed at the end.
+        particles: initial particle count (None for mesh methods).
+        at_rest: The run stopped at rest (``time.end: auto``) before the end time.
         failures: Criteria that failed (empty when the case passes).
     """
 
@@ -95,6 +113,7 @@ class HardResult:
     fall_speed: float = math.nan
     final_speed: float = math.nan
     particles: int | None = None
+    at_rest: bool = False
     failures: list[str] = field(default_factory=list)
 
 
@@ -125,35 +144,27 @@ def _fall_speed(solver, comm, g: float) -> float:
 
 
 def run_hard_case(case, comm) -> HardResult:
-    """Run ``case`` with its method (collective) and check every criterion."""
+    """Run ``case`` with its method through :func:`fem_runout.api.run` and check every criterion.
+
+    One output, at the end time (the hard cases judge the run step by step, not at output
+    times); ``end: auto`` stops at rest as in any run. Collective.
+    """
     from mpi4py import MPI
 
-    from fem_runout.api import build_solver
-    from fem_runout.errors import SimulationError
-    from fem_runout.output import SeriesRecorder
-    from fem_runout.runner import Runner, Schedule
+    from fem_runout.api import run
 
-    res = HardResult(case.name, case.method, end=case.time.end)
-    solver = build_solver(case, comm)
-    res.particles = getattr(solver, "n_particles", None)
-    fall = _fall_speed(solver, comm, case.gravity)
-    recorder = SeriesRecorder(Path("series.csv"), case.output.front_threshold,
-                              case.material.density)
-    recorder.write_csv = lambda: None  # type: ignore[method-assign]
-    watch = _Watch()
-    t = case.time
-    runner = Runner(solver, Schedule(t.end, t.cfl, t.end, t.max_steps, t.dt_max),
-                    [recorder, watch])
-    try:
-        info = runner.run()
-        res.t, res.steps = info.t, info.step
-    except SimulationError as exc:
-        res.failures.append(f"stopped: {exc}")
-    res.wall = runner.wall_time
+    every = case.output.model_copy(update={"every": case.time.end_time})
+    case = case.model_copy(update={"output": every})
+    watch = Watch(case.gravity)
+    r = run(case, write=False, comm=comm, callbacks=[watch], raise_errors=False)
+    res = HardResult(case.name, case.method, end=case.time.end_time, t=r.t, steps=r.steps,
+                     wall=r.wall_time, particles=watch.particles, fall_speed=watch.fall_speed,
+                     at_rest=r.at_rest)
+    if r.error is not None:
+        res.failures.append(f"stopped: {r.error}")
     res.min_h = comm.allreduce(watch.min_h, op=MPI.MIN)
     res.nan = comm.allreduce(watch.nan, op=MPI.SUM)
-    res.fall_speed = fall
-    _judge(res, recorder.series, case, _elevation_range(solver, comm))
+    _judge(res, r.series, case, watch.elevation_range)
     return res
 
 
@@ -163,7 +174,7 @@ def _judge(res: HardResult, s: dict[str, np.ndarray], case, dz: float) -> None:
     res.max_speed = float(np.max(s["max_speed"]))
     res.final_speed = float(s["max_speed"][-1])
     res.speed_bound = speed_bound(case.gravity, dz, float(np.max(s["max_depth"])))
-    if res.t < res.end * (1 - 1e-12):
+    if res.t < res.end * (1 - 1e-12) and not res.at_rest:
         res.failures.append(f"reached t = {res.t:.4g} < end {res.end:.4g}")
     if res.nan:
         res.failures.append(f"{res.nan} NaN values")

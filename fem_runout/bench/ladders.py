@@ -172,6 +172,27 @@ def voellmy_sheet(nx: int, method: str, comm) -> Level:
                   lambda t, g: ref.speed(t, 0.3, 0.1, 500.0, 1.0, g))
 
 
+def manning_sheet(nx: int, method: str, comm) -> Level:
+    """Relative error of the Manning sheet's speed (mean over the window) at 4 relaxation times.
+
+    Horizontal form; the exact speed is then within 7e-4 of the uniform-flow speed
+    ``h^{2/3} S^{1/2}/n`` (:mod:`fem_runout.references.manning_sheet`).
+    """
+    from fem_runout.references import manning_sheet as ref
+
+    return _sheet(nx, method, comm, ref.case_dict(nx), ref.WINDOW,
+                  lambda t, g: ref.speed(t, g=g))
+
+
+def manning_slope(nx: int, method: str, comm) -> Level:
+    """As :func:`manning_sheet` in the slope form: the speed along the bed on 35°."""
+    from fem_runout.references import manning_sheet as ref
+
+    return _sheet(nx, method, comm, ref.slope_case(nx), ref.SLOPE_WINDOW,
+                  lambda t, g: ref.slope_speed(t, g=g),
+                  1.0 / math.cos(math.radians(ref.THETA)))
+
+
 def _sheet(nx: int, method: str, comm, case_dict: dict, window: tuple[float, float],
            exact, scale: float = 1.0) -> Level:
     """Relative error of a sliding sheet's mean speed on ``window`` (× ``scale``)."""

@@ -25,6 +25,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from fem_runout.methods import default_method, method_names
+
 __all__ = ["HELP", "add_arguments", "format_table", "main"]
 
 HELP = "run the real-terrain case with a method at 1 and 2 ranks; update docs/real_terrain.md"
@@ -49,7 +51,7 @@ COLUMNS = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's options."""
-    parser.add_argument("--method", default="tg2", choices=("tg2", "mpm"))
+    parser.add_argument("--method", default=default_method(), choices=method_names())
     parser.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--case", type=Path, default=ROOT / "cases" / "avakot.yaml")
     parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "real_terrain.md")

@@ -41,7 +41,7 @@ REFERENCES = {
     "mangeney": (
         "Reference (`fem_runout/references/mangeney.py`; Mangeney et al. 2000, JGR 105, "
         "written for the horizontal-coordinate equations of seed eq. 1): on Z = −S x with "
-        "Coulomb friction −g μ h v/|v| (normal stress ρ g h as in `physics/friction.py`) and "
+        "Coulomb friction −g μ h v/|v| (normal stress ρ g h as in `physics/friction/`) and "
         "u > 0, the momentum source g h (S − μ) is a constant acceleration m = g (S − μ) per "
         "unit mass; in the frame ξ = x − m t²/2, w = u − m t the equations are the flat "
         "frictionless ones, so h = (2 c0 − s)²/(9 g) with s = (x − x0 − m t²/2)/t on "
@@ -55,6 +55,18 @@ REFERENCES = {
         "speed sqrt(ξ h (S − μ)) = 10 m/s. Measured at 3 relaxation times (u = 0.995 u_∞) on "
         "the part of the 400 m strip that the boundaries have not yet reached. The solution is "
         "uniform in space: this measures the time integration (the step is ∝ dx)."),
+    "manning_sheet": (
+        "Reference (`fem_runout/references/manning_sheet.py`; Manning's formula): a uniform "
+        "layer with Manning friction (`law: manning`, bed shear g n² |v| v/h^(1/3) on the "
+        "momentum, no yield stress) released at rest. **Horizontal form**: 1 m on Z = −0.3 x, "
+        "n = 0.05 s/m^(1/3); du/dt = g S − g n² u²/h^(4/3), so u = u∞ tanh(t/τ) with the "
+        "uniform-flow speed u∞ = h^(2/3) S^(1/2)/n = 10.95 m/s and τ = h^(2/3)/(g n S^(1/2)) "
+        "= 3.72 s. **Slope form** (`model.form: slope`): 1 m slope-normal sheet on 35°, "
+        "n = 0.05; along the bed dU/dt = g sinθ − g n² U²/h_n^(4/3), U∞ = h_n^(2/3) "
+        "(sinθ)^(1/2)/n = 15.15 m/s, τ = 2.69 s. Measured at 4 τ (the exact speed is then "
+        "0.9993 of the uniform-flow speed) as the mean speed on the part of the strip the "
+        "boundaries have not reached. The solution is uniform in space: like the Voellmy "
+        "sheet this measures the time integration (the step is ∝ dx)."),
     "slope": (
         "Reference (`fem_runout/references/slope.py`, the slope-consistent form of "
         "`physics/slope.py`, `model.form: slope`): on a plane the form has G = g cos²θ, "

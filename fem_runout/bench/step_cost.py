@@ -8,11 +8,13 @@ Usage::
 
 The driver does not import dolfinx. For each rank count it starts a worker,
 ``python -m fem_runout.bench step-cost --worker`` (serially for 1 rank, under
-``mpiexec -n R`` otherwise), with one thread per rank. A worker builds the solver of
-``cases/hemisphere.yaml`` on an N x N mesh, takes 3 warm-up steps (numba JIT, form
-compilation), then times ``--steps`` calls of ``advance(0.9 * stable_dt())`` (``stable_dt``
-included) and prints, on rank 0, one ``STEP_COST_RESULT {json}`` line: the maximum over ranks
-of the mean wall time per step. The driver writes the markdown table to ``--out``.
+``mpiexec -n R`` otherwise), with one thread per rank. A worker runs
+``cases/hemisphere.yaml`` on an N x N mesh through the one run function
+(:func:`fem_runout.api.run`, no output written) for 3 warm-up steps (numba JIT, form
+compilation) and ``--steps`` timed steps; a :class:`StepTimer` callback adds up the solver's
+share of each step (``stable_dt`` and ``advance``, as the runner measures it) and rank 0
+prints one ``STEP_COST_RESULT {json}`` line: the maximum over ranks of the mean wall time per
+step. The driver writes the markdown table to ``--out``.
 """
 
 from __future__ import annotations
@@ -28,11 +30,12 @@ import pstats
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["HELP", "add_arguments", "format_report", "machine_info", "main", "measure"]
+from fem_runout.methods import METHODS, default_method, method_names
+
+__all__ = ["HELP", "StepTimer", "add_arguments", "format_report", "machine_info", "main"]
 
 HELP = "wall time per step on N x N meshes, TG2-PC or DAMPM (serial and 2 MPI ranks)"
 RESULT_TAG = "STEP_COST_RESULT "
@@ -40,13 +43,15 @@ WARMUP_STEPS = 3
 PROFILE_TOP = 15
 DEFAULT_CASE = Path(__file__).resolve().parents[2] / "cases" / "hemisphere.yaml"
 THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+FAR = 1e6  # end time [s] far beyond the timed steps (the step count ends the run)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``step-cost`` options to ``parser``."""
     parser.add_argument("--cells", type=int, nargs="+", default=[250], metavar="N",
                         help="N x N cells, one or more N (250)")
-    parser.add_argument("--method", choices=("tg2", "mpm"), default="tg2", help="method (tg2)")
+    parser.add_argument("--method", choices=method_names(), default=default_method(),
+                        help=f"method ({default_method()})")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="case override (repeatable)")
     parser.add_argument("--steps", type=int, default=30, help="timed steps per run (30)")
@@ -82,79 +87,89 @@ def main(args: argparse.Namespace) -> int:
 # --- worker (runs under MPI, imports dolfinx) ---------------------------------------------
 
 
-def build_solver(case_path: Path, n: int, comm: Any, method: str = "tg2",
-                 overrides: list[str] | None = None) -> Any:
-    """Build the solver of ``case_path`` on an ``n`` x ``n`` mesh (collective)."""
-    from fem_runout.api import build_solver as build
-    from fem_runout.config import load_case
+class StepTimer:
+    """Callback: mean wall time of the solver's steps after a warm-up, max over ranks.
 
-    extra = [f"domain.cells=[{n},{n}]", f"method={method}", *(overrides or [])]
-    return build(load_case(case_path, overrides=extra), comm)
-
-
-def _advance(solver: Any, steps: int) -> None:
-    for _ in range(steps):
-        solver.advance(0.9 * solver.stable_dt())
-
-
-def measure(solver: Any, steps: int, comm: Any) -> float:
-    """Maximum over ranks of the mean wall time of one step [s] (collective).
+    Times what the runner reports as the solver's share of each step
+    (:attr:`~fem_runout.callbacks.StepInfo.solver_seconds`: ``stable_dt`` and ``advance``),
+    not the diagnostics and outputs; optionally profiles ``steps`` more steps on rank 0.
 
     Args:
-        solver: A warmed-up solver.
-        steps: Number of timed steps.
-        comm: The solver's communicator.
+        warmup: Steps before timing (numba JIT, form compilation).
+        steps: Timed steps.
+        profile: Profile ``steps`` more steps with cProfile on rank 0.
     """
-    from mpi4py import MPI
 
-    comm.barrier()
-    start = time.perf_counter()
-    _advance(solver, steps)
-    mean = (time.perf_counter() - start) / steps
-    return comm.allreduce(mean, op=MPI.MAX)
+    def __init__(self, warmup: int, steps: int, profile: bool = False) -> None:
+        self.warmup, self.steps, self.profile = warmup, steps, profile
+        self.seconds = 0.0
+        self.particles: int | None = None
+        self.report: str | None = None
+        self._profiler: cProfile.Profile | None = None
 
+    def start(self, solver: Any, info: Any) -> None:
+        """Nothing before the first step."""
 
-def profile(solver: Any, steps: int, comm: Any) -> str | None:
-    """Profile ``steps`` more steps on rank 0; return the top-15 by own time (rank 0 only)."""
-    profiler = cProfile.Profile() if comm.rank == 0 else None
-    comm.barrier()
-    if profiler is not None:
-        profiler.enable()
-    _advance(solver, steps)
-    if profiler is None:
-        return None
-    profiler.disable()
-    text = io.StringIO()
-    pstats.Stats(profiler, stream=text).sort_stats("tottime").print_stats(PROFILE_TOP)
-    return text.getvalue()
+    def step(self, solver: Any, info: Any) -> None:
+        """Add up the solver time of the timed steps; start the profiler after them."""
+        if self.warmup < info.step <= self.warmup + self.steps:
+            self.seconds += info.solver_seconds
+        if info.step == self.warmup + self.steps and self.profile and solver.comm.rank == 0:
+            self._profiler = cProfile.Profile()
+            self._profiler.enable()
+
+    def output(self, solver: Any, info: Any) -> None:
+        """Nothing at outputs."""
+
+    def finish(self, solver: Any, info: Any) -> None:
+        """Reduce the mean over ranks (collective) and stop the profiler."""
+        from mpi4py import MPI
+
+        self.seconds = solver.comm.allreduce(self.seconds / self.steps, op=MPI.MAX)
+        self.particles = solver.n_particles  # collective
+        if self._profiler is not None:
+            self._profiler.disable()
+            text = io.StringIO()
+            pstats.Stats(self._profiler, stream=text).sort_stats("tottime").print_stats(
+                PROFILE_TOP)
+            self.report = text.getvalue()
 
 
 def run_worker(args: argparse.Namespace) -> int:
-    """Build, warm up, time (and optionally profile); print the result line on rank 0."""
+    """Run the case through :func:`fem_runout.api.run` with a :class:`StepTimer`.
+
+    The case runs on ``N x N`` cells for the warm-up, timed (and profiled) steps, with one
+    output at the end; rank 0 prints the result line.
+    """
     from mpi4py import MPI
 
     # isort: split
 
     import dolfinx
 
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+
     comm = MPI.COMM_WORLD
     n = args.cells[0]
-    solver = build_solver(args.case, n, comm, args.method, args.set)
-    _advance(solver, WARMUP_STEPS)
-    seconds = measure(solver, args.steps, comm)
-    text = profile(solver, args.steps, comm) if args.profile else None
-    particles = getattr(solver, "n_particles", None)  # collective
+    total = WARMUP_STEPS + args.steps * (2 if args.profile else 1)
+    case = load_case(args.case, overrides=[
+        f"domain.cells=[{n},{n}]", f"method={args.method}", *args.set, f"time.end={FAR}",
+        f"output.every={FAR}", f"time.max_steps={total}"])
+    timer = StepTimer(WARMUP_STEPS, args.steps, args.profile)
+    run(case, write=False, comm=comm, callbacks=[timer])
     if comm.rank == 0:
-        if text is not None:
-            print(f"cProfile of rank 0 of {comm.size}, {args.steps} steps:\n{text}", flush=True)
+        if timer.report is not None:
+            print(f"cProfile of rank 0 of {comm.size}, {args.steps} steps:\n{timer.report}",
+                  flush=True)
         result = {
             "ranks": comm.size,
             "n": n,
             "cells": n**2,
             "method": args.method,
-            "particles": particles,
+            "particles": timer.particles,
             "steps": args.steps,
-            "seconds_per_step": seconds,
+            "seconds_per_step": timer.seconds,
             "dolfinx": dolfinx.__version__,
         }
         print(RESULT_TAG + json.dumps(result), flush=True)
@@ -250,7 +265,7 @@ def machine_info() -> dict[str, Any]:
 
 def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: str) -> str:
     """Return the markdown report: the table, then the machine and how it was measured."""
-    steps, method = results[0]["steps"], results[0].get("method", "tg2")
+    steps, method = results[0]["steps"], results[0].get("method", default_method())
     sizes = " ".join(sorted({str(r["n"]) for r in results}, key=int))
     rows = [
         "| ranks | cells | particles | ms/step | µs/cell/step | µs/particle/step |",
@@ -263,7 +278,7 @@ def format_report(results: list[dict[str, Any]], machine: dict[str, Any], case: 
         rows.append(f"| {r['ranks']} | {r['cells']} | {npart or '–'} | {ms:.1f} | {us:.3f} | "
                     f"{per_p} |")
     ranks = " ".join(sorted({str(r["ranks"]) for r in results}, key=int))
-    title = {"tg2": "TG2-PC", "mpm": "DAMPM"}.get(method, method)
+    title = METHODS[method].display if method in METHODS else method
     sets = "".join(f" --set '{item}'" for item in results[0].get("overrides", []))
     return "\n".join(
         [

@@ -1,10 +1,11 @@
 """Benchmark suite: ``python -m fem_runout.bench suite [--out docs/benchmarks.md]``.
 
-For every implemented method and every benchmark of :data:`BENCHMARKS`, the driver (which does
-not import dolfinx) starts one worker per rank count (``mpiexec -n R`` for R > 1, one thread per
-rank) that runs the whole refinement ladder and prints one ``SUITE_RESULT {json}`` line per level.
-Hard cases run once per method on 1 rank. The driver writes the markdown report and one
-error-against-wall-time figure per benchmark (:mod:`fem_runout.bench.suite_report`).
+For every registered method (:mod:`fem_runout.methods`) and every benchmark of
+:data:`BENCHMARKS`, the driver (which does not import dolfinx) starts one worker per rank count
+(``mpiexec -n R`` for R > 1, one thread per rank) that runs the whole refinement ladder and
+prints one ``SUITE_RESULT {json}`` line per level. Hard cases run once per method on 1 rank.
+The driver writes the markdown report and one error-against-wall-time figure per benchmark
+(:mod:`fem_runout.bench.suite_report`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Any
 
 from fem_runout.bench import ladders
 from fem_runout.bench.ladders import Benchmark
+from fem_runout.methods import method_names
 
 HELP = "all benchmarks, both methods, 1 and 2 ranks: docs/benchmarks.md + figures"
 TAG = "SUITE_RESULT "
@@ -70,6 +72,14 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("mangeney_slope", "Slope form: Mangeney's dam break on 30°",
               "L1 of h per metre of width at t = 2 s, where the upstream wall has not yet "
               "acted [m²]", "slope", (60, 120, 240, 480), ladders.mangeney_slope),
+    Benchmark("manning_sheet", "Manning sheet on a uniform slope",
+              "relative error of the mean speed on 250 <= x <= 350 m at 4 relaxation times "
+              "(exact h^(2/3) S^(1/2)/n tanh(t/τ))", "manning_sheet", (50, 100, 200, 400),
+              ladders.manning_sheet, claims_order=False),
+    Benchmark("manning_slope", "Slope form: Manning sheet on 35°",
+              "relative error of the mean speed along the bed on 450 <= x <= 650 m at 4 "
+              "relaxation times (exact h_n^(2/3) (sinθ)^(1/2)/n tanh(t/τ))", "manning_sheet",
+              (100, 200, 400, 800), ladders.manning_slope, claims_order=False),
 )
 
 
@@ -80,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these benchmarks")
     parser.add_argument("--levels", type=int, default=None, help="only the first N levels")
     parser.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--methods", nargs="+", help="default: every implemented method")
+    parser.add_argument("--methods", nargs="+", help="default: every registered method")
     parser.add_argument("--no-hard", action="store_true", help="skip the hard-case table")
     parser.add_argument("--timeout", type=float, default=1500.0, help="seconds per worker")
     parser.add_argument("--render", action="store_true",
@@ -137,11 +147,10 @@ def _launch(argv: list[str], ranks: int, timeout: float) -> list[dict[str, Any]]
 
 
 def _methods(args: argparse.Namespace) -> list[str]:
+    """Return the methods to run: ``--methods``, else every registered one (sorted by name)."""
     if args.methods:
         return list(args.methods)
-    from fem_runout.cli import _implemented_methods
-
-    return sorted(_implemented_methods())
+    return sorted(method_names())
 
 
 def run_driver(args: argparse.Namespace) -> int:

@@ -1,4 +1,8 @@
-"""Markdown report and figures of the benchmark suite (``docs/benchmarks.md``)."""
+"""Markdown report and figures of the benchmark suite (``docs/benchmarks.md``).
+
+Method names, display names, figure markers and the paper's values come from the registry
+(:mod:`fem_runout.methods`); the results are keyed by method name.
+"""
 
 from __future__ import annotations
 
@@ -8,11 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from fem_runout.bench.ladders import Benchmark
-from fem_runout.bench.references_text import PAPER_TABLE1, PAPER_TABLE2, READING, REFERENCES
+from fem_runout.bench.references_text import PAPER_TABLE1, READING, REFERENCES
 from fem_runout.bench.step_cost import machine_info
+from fem_runout.methods import METHODS, default_method, method_names
 
 Rows = list[dict[str, Any]]
-MARKERS = {"tg2": ("tab:blue", "o"), "mpm": ("tab:red", "s")}
+#: Matplotlib (colour, marker) of a method missing from the registry.
+UNKNOWN_MARKER = ("k", "^")
 
 
 def _fmt(v: Any) -> str:
@@ -60,7 +66,7 @@ def plot(bench: Benchmark, by_method: dict[str, dict[int, Rows]], path: Path,
     ax = fig.subplots()
     drawn = False
     for method, by_ranks in by_method.items():
-        color, marker = MARKERS.get(method, ("k", "^"))
+        color, marker = METHODS[method].marker if method in METHODS else UNKNOWN_MARKER
         for ranks, style in ((1, "-"), (2, "--")):
             pts = [(r["wall"], r["error"]) for r in by_ranks.get(ranks, [])
                    if r["error"] > 0 and r["wall"] > 0]
@@ -99,16 +105,23 @@ def _table1(results: dict) -> list[str]:
 
 
 def _table2(results: dict) -> list[str]:
+    """Seed Table 2: the paper's (L1, L∞) of each method (registry), then ours, per variable.
+
+    The paper's columns follow the order of the methods in the results.
+    """
+    ours = results.get("lake_at_rest", {})
+    paper = [METHODS[m] for m in ours if m in METHODS and "lake" in METHODS[m].paper]
     lines = ["### Seed Table 2 with our numbers", "",
              "50×50 cells, walls, T = 1 s, Voellmy (φ = 26°, ξ = 500 m/s²) and Bingham "
              "(μ = 2000 Pa s, τ_Y = 30 Pa), ρ = 1200 kg/m³. Depth error = free-surface error "
              "on wet nodes.", "",
-             "| variable | paper DAMPM L1 | paper DAMPM L∞ | paper TG2 L1 | paper TG2 L∞ | "
-             + " | ".join(f"ours {m} L1 | ours {m} L∞" for m in results.get("lake_at_rest", {}))
-             + " |", "|---|" + "---:|" * (4 + 2 * len(results.get("lake_at_rest", {})))]
+             "| variable | "
+             + "".join(f"paper {p.display} L1 | paper {p.display} L∞ | " for p in paper)
+             + " | ".join(f"ours {m} L1 | ours {m} L∞" for m in ours)
+             + " |", "|---|" + "---:|" * (2 * len(paper) + 2 * len(ours))]
     for var in ("h", "hu", "hv"):
-        cells = list(PAPER_TABLE2[var])
-        for by_ranks in results.get("lake_at_rest", {}).values():
+        cells = [value for p in paper for value in p.paper["lake"][var]]
+        for by_ranks in ours.values():
             row = next((r for r in by_ranks.get(1, []) if r["level"] == "50×50"), None)
             cells += [_fmt(row["extra"][f"{var}_l1"]) if row else "–",
                       _fmt(row["extra"][f"{var}_linf"]) if row else "–"]
@@ -138,7 +151,7 @@ def _hard(hard: dict[str, Rows]) -> list[str]:
     return lines + [""]
 
 
-def _orders_text(results: dict, name: str, key: str | None = None, method: str = "tg2") -> str:
+def _orders_text(results: dict, name: str, key: str | None, method: str) -> str:
     rows = results.get(name, {}).get(method, {}).get(1, [])
     errs = [r["error"] if key is None else r["extra"][key] for r in rows]
     return ", ".join(f"{o:.2f}" for o in orders(errs)[1:] if o is not None) or "–"
@@ -151,14 +164,12 @@ ROUND_OFF = 1e-10
 def rank_spread(results: dict, method: str) -> tuple[float, str]:
     """Largest relative difference of the error between 1 rank and any other rank count.
 
-    Over every ladder and level that ran on more than one rank count, errors of round-off
-    size (below :data:`ROUND_OFF`) left out.
+    Over every ladder of ``results`` (in its order, the suite's) and level that ran on more
+    than one rank count, errors of round-off size (below :data:`ROUND_OFF`) left out.
     """
-    from fem_runout.bench.suite import BENCHMARKS
-
     worst, where = 0.0, "–"
-    for bench in BENCHMARKS:
-        by_ranks = results.get(bench.name, {}).get(method, {})
+    for bench_name, by_method in results.items():
+        by_ranks = by_method.get(method, {})
         for ranks, rows in by_ranks.items():
             if int(ranks) == 1:
                 continue
@@ -167,42 +178,50 @@ def rank_spread(results: dict, method: str) -> tuple[float, str]:
                     continue
                 diff = abs(rn["error"] - r1["error"]) / abs(r1["error"])
                 if diff >= worst:
-                    worst, where = diff, f"{bench.name} at {r1['level']}, {ranks} ranks"
+                    worst, where = diff, f"{bench_name} at {r1['level']}, {ranks} ranks"
     return worst, where
 
 
-def reading(results: dict) -> str:
-    """Fill :data:`READING` with this run's numbers (``–`` where a ladder is missing)."""
-    def last(name: str, key: str | None = None, method: str = "tg2") -> float:
+def _method_fields(results: dict, method: str) -> dict[str, Any]:
+    """Return the reading's numbers of one method (serial rows), by unprefixed field name."""
+    def last(name: str, key: str | None = None) -> float:
         rows = results.get(name, {}).get(method, {}).get(1, [])
         if not rows:
             return math.nan
         return rows[-1]["error"] if key is None else rows[-1]["extra"][key]
 
+    def orders_of(name: str, key: str | None = None) -> str:
+        return _orders_text(results, name, key, method)
+
     centre = [r["extra"]["l1_rho_0_025"] for r in
-              results.get("thacker", {}).get("tg2", {}).get(1, [])][-2:]
+              results.get("thacker", {}).get(method, {}).get(1, [])][-2:]
+    return {
+        "shear_orders": orders_of("shear_decay"), "thacker_orders": orders_of("thacker"),
+        "thacker2_orders": orders_of("thacker_2T"),
+        "thacker_full_orders": orders_of("thacker", "full_l1"),
+        "centre_band": " → ".join(f"{c:.2e}" for c in centre) or "–",
+        "ritter_orders": orders_of("ritter"), "mangeney_orders": orders_of("mangeney"),
+        "voellmy_last": last("voellmy_sheet"), "dam_last": last("dam_break"),
+        "dam_front": last("dam_break", "front_11"),
+    }
+
+
+def reading(results: dict) -> str:
+    """Fill :data:`READING` with this run's numbers (``–`` where a ladder is missing).
+
+    Field names: the default method's numbers without prefix (``voellmy_last``), every other
+    registered method's with its name as prefix (``mpm_voellmy_last``), and
+    ``<name>_rank_spread`` for every method; fields the template does not use are ignored.
+    """
     pairs = [(r1["wall"], r2["wall"]) for by_method in results.values()
              for by_ranks in by_method.values()
              for r1, r2 in zip(by_ranks.get(1, []), by_ranks.get(2, []), strict=False)]
-    return READING.format(
-        faster=sum(w2 < w1 for w1, w2 in pairs), levels=len(pairs),
-        shear_orders=_orders_text(results, "shear_decay"),
-        thacker_orders=_orders_text(results, "thacker"),
-        thacker2_orders=_orders_text(results, "thacker_2T"),
-        thacker_full_orders=_orders_text(results, "thacker", "full_l1"),
-        centre_band=" → ".join(f"{c:.2e}" for c in centre) or "–",
-        ritter_orders=_orders_text(results, "ritter"),
-        mangeney_orders=_orders_text(results, "mangeney"),
-        voellmy_last=last("voellmy_sheet"), dam_last=last("dam_break"),
-        dam_front=last("dam_break", "front_11"),
-        mpm_voellmy_last=last("voellmy_sheet", method="mpm"),
-        mpm_ritter_orders=_orders_text(results, "ritter", method="mpm"),
-        mpm_mangeney_orders=_orders_text(results, "mangeney", method="mpm"),
-        mpm_thacker_orders=_orders_text(results, "thacker", method="mpm"),
-        mpm_shear_orders=_orders_text(results, "shear_decay", method="mpm"),
-        mpm_dam_front=last("dam_break", "front_11", method="mpm"),
-        mpm_rank_spread=_spread_text(*rank_spread(results, "mpm")),
-        tg2_rank_spread=_spread_text(*rank_spread(results, "tg2")))
+    fields: dict[str, Any] = {"faster": sum(w2 < w1 for w1, w2 in pairs), "levels": len(pairs)}
+    for method in method_names():
+        prefix = "" if method == default_method() else f"{method}_"
+        fields.update({prefix + k: v for k, v in _method_fields(results, method).items()})
+        fields[f"{method}_rank_spread"] = _spread_text(*rank_spread(results, method))
+    return READING.format(**fields)
 
 
 def _spread_text(worst: float, where: str) -> str:

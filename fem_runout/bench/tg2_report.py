@@ -13,8 +13,14 @@ import platform
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from fem_runout.methods import METHODS, default_method, get
+
+if TYPE_CHECKING:
+    from fem_runout.api import RunResult
 
 HELP = "TG2-PC verification: dam-break fronts, Ritter, lake at rest, hemisphere."
 CASES = Path(__file__).resolve().parents[2] / "cases"
@@ -26,7 +32,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--levels", type=int, default=3, help="dam-break refinement levels")
 
 
-def _run(name: str, *overrides: str):
+def run_case(name: str, *overrides: str) -> RunResult:
+    """Run the shipped case ``cases/<name>.yaml`` with overrides on every rank, no output.
+
+    Returns:
+        The :class:`~fem_runout.api.RunResult` (arrays on rank 0).
+    """
     from mpi4py import MPI
 
     from fem_runout.api import run
@@ -38,7 +49,7 @@ def _run(name: str, *overrides: str):
 
 def _fronts(nx: int, ny: int) -> tuple[dict[float, float], float, int]:
     """Front positions (h > 1e-3) at the output times on the [0, 450] m slope."""
-    r = _run("inclined_dam_break_450", f"domain.cells=[{nx},{ny}]", "output.every=2.75")
+    r = run_case("inclined_dam_break_450", f"domain.cells=[{nx},{ny}]", "output.every=2.75")
     s = r.series
     fronts = {}
     if r.x is not None:
@@ -50,7 +61,7 @@ def _fronts(nx: int, ny: int) -> tuple[dict[float, float], float, int]:
 
 def dam_break_section(levels: int) -> list[str]:
     """Front table of seed §4.1 with the exact tip and the paper's values."""
-    from fem_runout.references.inclined_dam_break import PAPER_FRONT, exact_front
+    from fem_runout.references.inclined_dam_break import exact_front
 
     lines = ["## Inclined dam break (seed §4.1)", "",
              "Front = largest x with h > 1e-3 m, domain [0, 450] × [0, 20] m (same solution as on "
@@ -65,11 +76,18 @@ def dam_break_section(levels: int) -> list[str]:
                      + " |")
     exact = [f"{exact_front(t):.1f}" for t in (2.75, 5.5, 8.25, 11.0)]
     lines.append("| exact tip | | | | " + " | ".join(exact) + " |")
-    lines.append(f"| paper TG2 | | | | | {PAPER_FRONT['tg2'][5.5]} | | "
-                 f"{PAPER_FRONT['tg2'][11.0]} |")
-    lines.append(f"| paper DAMPM | | | | | {PAPER_FRONT['dampm'][5.5]} | | "
-                 f"{PAPER_FRONT['dampm'][11.0]} |")
+    lines += paper_front_rows("paper {}")
     return lines
+
+
+def paper_front_rows(label: str) -> list[str]:
+    """Return the seed's fronts at 5.5 and 11 s, a row per registered method that has them.
+
+    Args:
+        label: Row label, ``{}`` replaced by the method's display name.
+    """
+    return [f"| {label.format(m.display)} | | | | | {m.paper['front'][5.5]} | | "
+            f"{m.paper['front'][11.0]} |" for m in METHODS.values() if "front" in m.paper]
 
 
 def ritter_section() -> list[str]:
@@ -83,7 +101,7 @@ def ritter_section() -> list[str]:
              "|---:|---:|---:|---:|---:|"]
     prev = None
     for nx in (100, 200, 400, 800):
-        r = _run("ritter", f"domain.cells=[{nx},2]", "output.every=4.0")
+        r = run_case("ritter", f"domain.cells=[{nx},2]", "output.every=4.0")
         if r.x is None:
             continue
         err = l1(r.h - ritter_depth(r.x, 4.0, 1.0, 50.0, 9.81), nodal_weights(r.x, r.y)) / 2.0
@@ -93,26 +111,24 @@ def ritter_section() -> list[str]:
     return lines
 
 
-#: Seed Table 2: (L1, L∞) of h, hu, hv per method.
-PAPER_LAKE = {
-    "tg2": {"h": ("2.68e-13", "8.92e-15"), "hu": ("2.38e-13", "1.41e-14"),
-            "hv": ("1.67e-13", "2.02e-14")},
-    "mpm": {"h": ("1.26e-12", "1.26e-14"), "hu": ("1.08e-13", "3.57e-14"),
-            "hv": ("1.22e-13", "3.25e-14")},
-}
+def lake_section(method: str | None = None, *overrides: str, setting: str = "") -> list[str]:
+    """Seed Table 2 layout: our numbers beside the paper's (the registry's) for ``method``.
 
-
-def lake_section(method: str = "tg2", *overrides: str, setting: str = "") -> list[str]:
-    """Seed Table 2 layout: our numbers beside the paper's for ``method``."""
+    Args:
+        method: A registered method (default: the default method).
+        overrides: More case overrides.
+        setting: Text after the run description.
+    """
     from fem_runout.references.norms import l1, linf, nodal_weights
 
-    r = _run("lake_at_rest", f"method={method}", *overrides)
+    method = method or default_method()
+    r = run_case("lake_at_rest", f"method={method}", *overrides)
     lines = ["## Lake at rest (seed §4.2, Table 2 layout)", ""]
     if r.x is None:
         return lines
     w = nodal_weights(r.x, r.y)
     eta = np.where(r.h > 1e-6, r.h + r.z - 10.0, 0.0)
-    paper, name = PAPER_LAKE[method], {"tg2": "TG2", "mpm": "DAMPM"}[method]
+    paper, name = get(method).paper["lake"], get(method).display
     lines += [f"50×50 cells, walls, T = 1 s ({r.steps} steps){setting}.", "",
               f"| variable | ours L1 | ours L∞ | paper {name} L1 | paper {name} L∞ |",
               "|---|---:|---:|---:|---:|"]
@@ -123,17 +139,18 @@ def lake_section(method: str = "tg2", *overrides: str, setting: str = "") -> lis
     return lines
 
 
-def hemisphere_section(method: str = "tg2") -> list[str]:
-    """Front radius along x, y and the diagonal at 1.2 s."""
+def hemisphere_section(method: str | None = None) -> list[str]:
+    """Front radius along x, y and the diagonal at 1.2 s (default: the default method)."""
     from fem_runout.references.norms import front_radius
 
+    method = method or default_method()
     lines = ["## Hemisphere collapse (seed §4.1.1)", "",
              "Radius 5 m at (25, 25), open boundaries, t = 1.2 s; front = h > 1e-3 m; the paper "
              "reports a diameter of about 13 m.", "",
              "| cells | dx [m] | particles | r_x | r_y | r_diag | max − min | mass error |",
              "|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for n in (100, 200):
-        r = _run("hemisphere", f"method={method}", f"domain.cells=[{n},{n}]")
+        r = run_case("hemisphere", f"method={method}", f"domain.cells=[{n},{n}]")
         if r.x is None:
             continue
         rad = [front_radius(r.x, r.y, r.h, (25.0, 25.0), 1e-3, d)
@@ -173,7 +190,7 @@ def write_report(title: str, command: str, sections: list[Callable[[], list[str]
 
 def main(args: argparse.Namespace) -> int:
     """Run every section and write the report on rank 0."""
-    return write_report("TG2-PC verification", "tg2-report", [
+    return write_report(f"{get(default_method()).display} verification", "tg2-report", [
         lambda: dam_break_section(args.levels), ritter_section,
         lambda: lake_section(setting=", friction and rheology off"), hemisphere_section],
         args.out)

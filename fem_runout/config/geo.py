@@ -1,23 +1,24 @@
 """Case keys for real terrain: the DEM (``terrain``) and the release areas (``initial.release``).
 
 These models only check the case text; the files are opened by
-:func:`fem_runout.terrain.resolve.resolve_terrain` when the case is loaded.
+:func:`fem_runout.terrain.resolve.resolve_terrain` when the case is loaded. The data folder
+(``${FEM_RUNOUT_DATA}``) lives in :mod:`fem_runout.terrain.paths` and is re-exported here.
 """
 
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 from typing import Annotated, Any
 
 from pydantic import BeforeValidator, Field, model_validator
 
 from fem_runout.config.expr import Expression, compile_expression
 from fem_runout.config.types import Bool, Expr, Real, SpecError, StrictSpec, is_number
+from fem_runout.terrain.paths import DATA_ENV, DATA_PLACEHOLDER, data_folder, expand_data_path
 
 __all__ = [
     "DATA_ENV",
+    "DATA_PLACEHOLDER",
     "ReleaseArea",
     "TerrainSpec",
     "data_folder",
@@ -118,23 +119,3 @@ def parse_window(value: Any) -> Any:
     if not (value[0] < value[1] and value[2] < value[3]):
         raise SpecError(f"must have xmin < xmax and ymin < ymax, got {list(value)!r}")
     return tuple(float(v) for v in value)
-
-
-DATA_ENV = "FEM_RUNOUT_DATA"
-DATA_PLACEHOLDER = "${FEM_RUNOUT_DATA}"
-
-
-def data_folder() -> Path:
-    """Return the data folder: ``$FEM_RUNOUT_DATA``, else ``../shared/data`` from the project root.
-
-    The project root is the folder holding the ``fem_runout`` package (a source checkout).
-    """
-    env = os.environ.get(DATA_ENV)
-    if env:
-        return Path(env).expanduser()
-    return (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve()
-
-
-def expand_data_path(text: str) -> str:
-    """Replace ``${FEM_RUNOUT_DATA}`` in a path by :func:`data_folder`."""
-    return text.replace(DATA_PLACEHOLDER, str(data_folder()))

@@ -10,16 +10,21 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BeforeValidator, Field, PrivateAttr, model_validator
+from pydantic import BeforeValidator, Field, PrivateAttr, create_model, model_validator
 
 from fem_runout.config.domain import BoundarySides, DomainSpec
 from fem_runout.config.expr import Expression, compile_expression
 from fem_runout.config.geo import ReleaseArea, TerrainSpec, expand_data_path, parse_release
 from fem_runout.config.timing import TimeSpec
 from fem_runout.config.types import Bool, Expr, Int, Real, SpecError, StrictSpec, is_number
+from fem_runout.methods import default_method, method_names
+from fem_runout.physics.friction import LAWS
+from fem_runout.physics.friction.base import coulomb_coefficient
+from fem_runout.physics.friction.registry import ParameterError, Registry
+from fem_runout.physics.rheology import RHEOLOGIES
 
 __all__ = [
     "BoundarySides",
@@ -37,6 +42,14 @@ __all__ = [
     "TerrainSpec",
     "TimeSpec",
 ]
+
+
+def _method(value: Any) -> Any:
+    names = method_names()
+    if value not in names:
+        raise SpecError(f"must be one of {', '.join(names)} (the registered methods, "
+                        f"fem_runout/methods.py), got {value!r}")
+    return value
 
 
 def _velocity(value: Any) -> Any:
@@ -79,78 +92,79 @@ class InitialSpec(StrictSpec):
         )
 
 
-class FrictionSpec(StrictSpec):
-    """Basal friction law (validated here, implemented by the physics modules).
+class _LawSpec(StrictSpec):
+    """A ``material`` block naming a registered law (``law``) and that law's parameters.
 
-    Attributes:
-        law: ``none``, ``coulomb`` or ``voellmy``.
-        mu: Friction coefficient (or ``None``).
-        phi_deg: Friction angle [deg] (or ``None``); ``mu = tan(phi)``.
-        xi: Voellmy turbulence coefficient [m/s^2] (voellmy only).
-        gamma: Relaxation of the sign function (coulomb/voellmy; default 1e-2).
+    The allowed ``law`` values and the other keys come from a registry
+    (:class:`fem_runout.physics.friction.registry.Registry`): each key is one law's
+    :class:`~fem_runout.physics.friction.registry.Parameter`, with its bounds. ``law: none``
+    takes no other key; another law takes its own keys only, needs its required ones, gets its
+    defaults filled in and runs its own checks (messages name the key).
     """
 
-    law: Literal["none", "coulomb", "voellmy"] = "none"
-    mu: Real | None = Field(None, ge=0)
-    phi_deg: Real | None = Field(None, ge=0, lt=90)
-    xi: Real | None = Field(None, gt=0)
-    gamma: Real | None = Field(None, gt=0)
+    registry: ClassVar[Registry]
+    law: str = "none"  # replaced by the Literal of the registered names (:func:`_law_spec`)
 
     @model_validator(mode="before")
     @classmethod
-    def _default_gamma(cls, data: Any) -> Any:
-        if isinstance(data, dict) and data.get("law") in ("coulomb", "voellmy"):
-            if data.get("gamma") is None:
-                return {**data, "gamma": 1e-2}
+    def _fill_defaults(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("law") in cls.registry:
+            return cls.registry.with_defaults(data["law"], data)
         return data
 
     @model_validator(mode="after")
-    def _check_law(self) -> FrictionSpec:
+    def _check_law(self) -> _LawSpec:
+        given = {p.name: getattr(self, p.name) for p in self.registry.parameters()
+                 if getattr(self, p.name) is not None}
         if self.law == "none":
-            for key in ("mu", "phi_deg", "xi", "gamma"):
-                if getattr(self, key) is not None:
-                    raise SpecError("not allowed with law 'none'", key)
+            if given:
+                raise SpecError("not allowed with law 'none'", next(iter(given)))
             return self
-        if (self.mu is None) == (self.phi_deg is None):
-            raise SpecError(f"law '{self.law}' needs exactly one of mu or phi_deg")
-        if self.law == "voellmy" and self.xi is None:
-            raise SpecError("required for law 'voellmy' (turbulence coefficient, m/s^2)", "xi")
-        if self.law == "coulomb" and self.xi is not None:
-            raise SpecError("only used by law 'voellmy'", "xi")
+        try:
+            self.registry.check(self.law, given)
+        except ParameterError as exc:
+            raise SpecError(str(exc), exc.key) from None
         return self
+
+
+def _law_spec(name: str, base: type[_LawSpec], registry: Registry, doc: str) -> Any:
+    """Build the block model ``name``: ``law`` plus every registered law's parameters."""
+    fields: dict[str, Any] = {"law": (Literal[("none", *registry.names())], "none")}
+    for p in registry.parameters():
+        fields[p.name] = (Real | None, Field(None, description=p.describe(), **p.bounds()))
+    model = create_model(name, __base__=base, __module__=__name__, __doc__=doc, **fields)
+    model.registry = registry
+    return model
+
+
+class _FrictionBase(_LawSpec):
+    """``material.friction``: the fields come from :data:`LAWS` (:func:`_law_spec`)."""
+
+    mu: Real | None = None  # replaced with its bounds by _law_spec
+    phi_deg: Real | None = None  # replaced with its bounds by _law_spec
 
     @property
     def mu_value(self) -> float | None:
-        """The friction coefficient: ``mu``, or ``tan(phi_deg)``, or ``None`` for law none."""
-        if self.mu is not None:
-            return self.mu
-        if self.phi_deg is not None:
-            return math.tan(math.radians(self.phi_deg))
-        return None
+        """The friction coefficient: ``mu``, or ``tan(phi_deg)``, or ``None`` if neither."""
+        if self.mu is None and self.phi_deg is None:
+            return None
+        return coulomb_coefficient(self.mu, self.phi_deg)
 
 
-class RheologySpec(StrictSpec):
-    """Internal rheology (validated here, implemented by the physics modules).
+FrictionSpec = _law_spec("FrictionSpec", _FrictionBase, LAWS, """Basal friction (seed eq. 2).
 
-    Attributes:
-        law: ``none`` or ``bingham``.
-        viscosity: Bingham viscosity [Pa s].
-        yield_stress: Bingham yield stress [Pa].
-    """
+    ``law`` is ``none`` or a law of :data:`fem_runout.physics.friction.LAWS` (``coulomb``,
+    ``voellmy``, ``manning``); the other keys are the laws' parameters (``mu``, ``phi_deg``,
+    ``xi``, ``n``, ``gamma``: docs/case_schema.md), each accepted only by the laws that take
+    it. ``gamma`` (coulomb, voellmy) defaults to the value in
+    :mod:`fem_runout.physics.friction.base`.
+    """)
 
-    law: Literal["none", "bingham"] = "none"
-    viscosity: Real | None = Field(None, ge=0)
-    yield_stress: Real | None = Field(None, ge=0)
+RheologySpec = _law_spec("RheologySpec", _LawSpec, RHEOLOGIES, """Internal rheology.
 
-    @model_validator(mode="after")
-    def _check_law(self) -> RheologySpec:
-        for key in ("viscosity", "yield_stress"):
-            given = getattr(self, key) is not None
-            if self.law == "none" and given:
-                raise SpecError("not allowed with law 'none'", key)
-            if self.law == "bingham" and not given:
-                raise SpecError("required for law 'bingham'", key)
-        return self
+    ``law`` is ``none`` or a rheology of :data:`fem_runout.physics.rheology.RHEOLOGIES`
+    (``bingham``: ``viscosity`` [Pa s] and ``yield_stress`` [Pa], both required).
+    """)
 
 
 class MaterialSpec(StrictSpec):
@@ -238,7 +252,7 @@ class Case(StrictSpec):
 
     Attributes:
         name: Case name (letters, digits, ``_`` and ``-``).
-        method: ``tg2`` or ``mpm``.
+        method: A registered method (:mod:`fem_runout.methods`).
         gravity: Gravitational acceleration [m/s^2].
         domain: Rectangle, mesh and boundary.
         terrain: Elevation expression.
@@ -252,7 +266,7 @@ class Case(StrictSpec):
     """
 
     name: Annotated[str, BeforeValidator(_name)]
-    method: Literal["tg2", "mpm"] = "tg2"
+    method: Annotated[str, BeforeValidator(_method)] = Field(default_factory=default_method)
     gravity: Real = Field(9.81, gt=0)
     domain: DomainSpec
     terrain: TerrainSpec = TerrainSpec()

@@ -116,15 +116,16 @@ class SeriesRecorder:
     output and at finish, so a crashed run keeps its series.
     """
 
-    def __init__(self, path: str | Path, threshold: float, density: float) -> None:
+    def __init__(self, path: str | Path | None, threshold: float, density: float) -> None:
         """Create the recorder.
 
         Args:
-            path: CSV file to write (its folder is created on rank 0 when writing).
+            path: CSV file to write (its folder is created on rank 0 when writing), or None
+                to keep the series in memory only.
             threshold: Dry threshold [m].
             density: Bulk density [kg/m^3].
         """
-        self.path = Path(path)
+        self.path = None if path is None else Path(path)
         self.threshold = float(threshold)
         self.density = float(density)
         self.initial_volume = float("nan")
@@ -149,8 +150,8 @@ class SeriesRecorder:
         self._last_step = info.step
 
     def write_csv(self) -> None:
-        """Write the series to :attr:`path` (rank 0 only; other ranks do nothing)."""
-        if self._rank != 0:
+        """Write the series to :attr:`path` (rank 0 only; nothing without a path)."""
+        if self._rank != 0 or self.path is None:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_suffix(self.path.suffix + ".tmp")

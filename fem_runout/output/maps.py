@@ -91,6 +91,8 @@ def render_deposit_3d(g: dict[str, np.ndarray], path: Path, threshold: float,
     """
     import pyvista
 
+    from fem_runout.output.pictures import use_headless_vtk
+
     c = _crop(g, threshold)
     if min(c["z"].shape) < 2:
         return None
@@ -109,6 +111,7 @@ def render_deposit_3d(g: dict[str, np.ndarray], path: Path, threshold: float,
     elev = np.radians(40.0)
     eye = centre + 1.3 * size * np.array([look[0] * np.cos(elev), look[1] * np.cos(elev),
                                            np.sin(elev)])
+    use_headless_vtk()
     plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 800))
     try:
         plotter.set_background("white")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes.util
+import os
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -20,7 +22,30 @@ if TYPE_CHECKING:
     from fem_runout.output.diagnostics import PeakTracker, SeriesRecorder
     from fem_runout.solver_api import Solver
 
-__all__ = ["Pictures", "grid_shape", "plot_series", "render_depth"]
+__all__ = ["Pictures", "grid_shape", "plot_series", "render_depth", "use_headless_vtk"]
+
+#: VTK's variable naming the OpenGL render window class to create (VTK >= 9.4).
+VTK_WINDOW_ENV = "VTK_DEFAULT_OPENGL_WINDOW"
+
+
+def use_headless_vtk() -> str | None:
+    """Make VTK render off-screen with EGL when there is no display; call before a render window.
+
+    VTK (>= 9.4) picks its OpenGL window at run time, trying X first: without a display it
+    logs ``bad X server connection. DISPLAY=`` and then falls back to EGL. Naming EGL in
+    ``VTK_DEFAULT_OPENGL_WINDOW`` skips the X attempt and its message; the pictures are the
+    same. Nothing changes when a display is set (X or Wayland), when the variable is already
+    set (the user's choice wins), or when no EGL library is installed (VTK's own fallbacks
+    then apply: a forced window class that fails cannot be recovered from).
+
+    Returns:
+        The render window class in the environment, or None (VTK detects it).
+    """
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        return os.environ.get(VTK_WINDOW_ENV)
+    if VTK_WINDOW_ENV not in os.environ and ctypes.util.find_library("EGL") is not None:
+        os.environ[VTK_WINDOW_ENV] = "vtkEGLRenderWindow"
+    return os.environ.get(VTK_WINDOW_ENV)
 
 
 def plot_series(series: dict[str, np.ndarray], path: str | Path, title: str = "") -> Path:
@@ -121,6 +146,7 @@ def render_depth(
         warnings.warn(f"pyvista unavailable, no depth picture: {err}", stacklevel=2)
         return None
     pyvista.OFF_SCREEN = True
+    use_headless_vtk()
     shape = (ny + 1, nx + 1)
     grid = pyvista.StructuredGrid(*(np.reshape(a, shape).T for a in (x, y, z)))
     depth = np.where(h > threshold, h, np.nan)

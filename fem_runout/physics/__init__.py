@@ -1,8 +1,9 @@
-"""Physics of the run-out model: bed friction (seed eq. 2) and Bingham rheology (seed eqs. 3-7)."""
+"""Physics of the run-out model: bed friction (seed eq. 2; Manning) and rheology (eqs. 3-7)."""
 
 from fem_runout.physics.friction import (
     Coulomb,
     FrictionLaw,
+    Manning,
     Voellmy,
     friction_from_spec,
     relaxed_sign,
@@ -13,6 +14,7 @@ __all__ = [
     "Bingham",
     "Coulomb",
     "FrictionLaw",
+    "Manning",
     "Voellmy",
     "friction_from_spec",
     "relaxed_sign",

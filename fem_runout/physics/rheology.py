@@ -29,17 +29,41 @@ Choices, stated:
 In this model the Bingham stress acts on in-plane velocity gradients only (it is a diffusion of
 momentum); the resistance of the bed comes from the friction law (:mod:`.friction`). The
 vertical shear ``∂z v`` only raises ``I₂`` and so lowers the yield part of ``μ_eff``.
+
+Registry
+--------
+The rheologies (``material.rheology.law``) are the :class:`Rheology` subclasses registered in
+:data:`RHEOLOGIES` (today ``bingham``); the case schema reads it for the allowed names and
+keys, as for the friction laws (:mod:`fem_runout.physics.friction.registry`,
+docs/extending.md).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
+
 import numpy as np
 
-from fem_runout.config.schema import RheologySpec
+from fem_runout.physics.friction.registry import Parameter, Registry
 
-__all__ = ["Bingham", "plug_ratio", "rheology_from_spec", "strain_rate"]
+if TYPE_CHECKING:
+    from fem_runout.config.schema import RheologySpec
+
+__all__ = [
+    "RHEOLOGIES",
+    "Bingham",
+    "Rheology",
+    "plug_ratio",
+    "register_rheology",
+    "rheology_from_spec",
+    "strain_rate",
+]
 
 Array = np.ndarray
+
+#: Regularisation strain rate ``δ`` [1/s] of a yield term (written here only).
+REG_DEFAULT = 1e-3
 
 
 def strain_rate(grad_u: Array) -> Array:
@@ -77,8 +101,67 @@ def plug_ratio(speed: Array, h: Array, viscosity: float, yield_stress: float) ->
     return np.clip(psi, 0.0, 1.0)
 
 
-class Bingham:
+class Rheology:
+    """An internal rheology: ``σ = 2 μ_eff D`` with an effective viscosity per node.
+
+    What the solvers use: :meth:`effective_viscosity` (TG2-PC per cell, DAMPM per particle),
+    ``density`` (``ν = μ_eff/ρ``) and ``viscosity``, the part of ``μ_eff`` that multiplies the
+    strain rate without bound (it limits DAMPM's explicit step; a yield part has a bounded
+    stress). A subclass sets ``name`` and ``parameters`` (its keys in ``material.rheology``)
+    and implements :meth:`effective_viscosity` and :meth:`from_spec`.
+
+    Attributes:
+        name: Key in case files (``material.rheology.law``).
+        parameters: The rheology's other keys.
+        viscosity: Newtonian part of the viscosity [Pa s].
+        density: ``ρ`` [kg/m³].
+    """
+
+    name: ClassVar[str] = ""
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    viscosity: float
+    density: float
+
+    @classmethod
+    def check_parameters(cls, given: Mapping[str, Any]) -> None:
+        """Check the keys ``given`` against each other (beyond bounds and required keys)."""
+
+    @classmethod
+    def from_spec(cls, spec: RheologySpec, density: float, reg: float | None) -> Rheology:
+        """Build the rheology from the validated ``material.rheology`` block."""
+        raise NotImplementedError
+
+    def effective_viscosity(self, h: Array, u: Array, v: Array, grad_u: Array) -> Array:
+        """``μ_eff`` [Pa s] per point, so that ``σ = 2 μ_eff D``."""
+        raise NotImplementedError
+
+    def stress(self, h: Array, u: Array, v: Array, grad_u: Array) -> Array:
+        """Deviatoric stress ``σ = 2 μ_eff D`` [Pa] (seed eq. 3), shape (n, 2, 2), symmetric.
+
+        ``σ_xx = 2 μ_eff ∂x u``, ``σ_yy = 2 μ_eff ∂y v``, ``σ_xy = μ_eff (∂y u + ∂x v)``.
+        """
+        mu_eff = self.effective_viscosity(h, u, v, grad_u)
+        return 2.0 * mu_eff[:, None, None] * strain_rate(grad_u)
+
+    def kinematic_stress(self, h: Array, u: Array, v: Array, grad_u: Array) -> Array:
+        """``σ/ρ`` [m²/s²], the stress as it enters the momentum equation ``(1/ρ) ∇·(h σ)``."""
+        return self.stress(h, u, v, grad_u) / self.density
+
+    def max_effective_viscosity(self, h: Array, u: Array, v: Array, grad_u: Array) -> float:
+        """Largest ``μ_eff`` [Pa s] over the nodes (0 for no node).
+
+        For a spectral-radius bound of the explicit diffusion: the momentum diffuses with a
+        kinematic viscosity of at most ``2 μ_eff/ρ`` (the ``σ_xx = 2 μ_eff ∂x u`` term). For
+        :class:`Bingham` the bound ``μ + τ_Y/(2δ)`` holds whatever the state.
+        """
+        mu_eff = self.effective_viscosity(h, u, v, grad_u)
+        return float(mu_eff.max()) if mu_eff.size else 0.0
+
+
+class Bingham(Rheology):
     """Depth-integrated Bingham stress ``σ = (2μ + τ_Y/sqrt(I₂ + δ²)) D`` (seed eqs. 3-7).
+
+    Case keys: ``viscosity`` and ``yield_stress`` (both required, >= 0).
 
     Attributes:
         viscosity: ``μ`` [Pa s].
@@ -88,12 +171,18 @@ class Bingham:
         dry_tol: Depth [m] at or below which ``∂z v`` is taken as 0 (dry node).
     """
 
+    name = "bingham"
+    parameters = (
+        Parameter("viscosity", "Bingham viscosity", "Pa s", ge=0.0, required=True),
+        Parameter("yield_stress", "Bingham yield stress", "Pa", ge=0.0, required=True),
+    )
+
     def __init__(
         self,
         viscosity: float,
         yield_stress: float,
         density: float,
-        reg: float = 1e-3,
+        reg: float = REG_DEFAULT,
         dry_tol: float = 1e-6,
     ) -> None:
         if viscosity < 0 or yield_stress < 0 or density <= 0 or reg <= 0:
@@ -139,38 +228,30 @@ class Bingham:
         i2 = self.second_invariant(h, u, v, grad_u)
         return self.viscosity + 0.5 * self.yield_stress / np.sqrt(i2 + self.reg**2)
 
-    def stress(self, h: Array, u: Array, v: Array, grad_u: Array) -> Array:
-        """Deviatoric stress ``σ = 2 μ_eff D`` [Pa] (seed eq. 3), shape (n, 2, 2), symmetric.
-
-        ``σ_xx = 2 μ_eff ∂x u``, ``σ_yy = 2 μ_eff ∂y v``, ``σ_xy = μ_eff (∂y u + ∂x v)``.
-        """
-        mu_eff = self.effective_viscosity(h, u, v, grad_u)
-        return 2.0 * mu_eff[:, None, None] * strain_rate(grad_u)
-
-    def kinematic_stress(self, h: Array, u: Array, v: Array, grad_u: Array) -> Array:
-        """``σ/ρ`` [m²/s²], the stress as it enters the momentum equation ``(1/ρ) ∇·(h σ)``."""
-        return self.stress(h, u, v, grad_u) / self.density
-
-    def max_effective_viscosity(self, h: Array, u: Array, v: Array, grad_u: Array) -> float:
-        """Largest ``μ_eff`` [Pa s] over the nodes (0 for no node).
-
-        For a spectral-radius bound of the explicit diffusion: the momentum diffuses with a
-        kinematic viscosity of at most ``2 μ_eff/ρ`` (the ``σ_xx = 2 μ_eff ∂x u`` term). The
-        bound ``μ + τ_Y/(2δ)`` holds whatever the state.
-        """
-        mu_eff = self.effective_viscosity(h, u, v, grad_u)
-        return float(mu_eff.max()) if mu_eff.size else 0.0
+    @classmethod
+    def from_spec(cls, spec: RheologySpec, density: float, reg: float | None = None) -> Bingham:
+        """``Bingham(viscosity, yield_stress, density, reg)`` (``reg`` None: the default)."""
+        extra = {} if reg is None else {"reg": reg}
+        return cls(spec.viscosity, spec.yield_stress, density, **extra)
 
 
-def rheology_from_spec(spec: RheologySpec, density: float, reg: float = 1e-3) -> Bingham | None:
+#: The rheologies, by name, in registration order (``law: none`` is not one of them).
+RHEOLOGIES = Registry("rheology")
+#: Add a :class:`Rheology` subclass to :data:`RHEOLOGIES` (its ``name`` must be new).
+register_rheology = RHEOLOGIES.register
+
+register_rheology(Bingham)
+
+
+def rheology_from_spec(spec: RheologySpec, density: float,
+                       reg: float | None = None) -> Rheology | None:
     """Build the rheology of a case: ``None`` for ``law: none``.
 
     Args:
         spec: The validated rheology block of the case.
         density: ``ρ`` [kg/m³].
-        reg: Regularisation strain rate ``δ`` [1/s].
+        reg: Regularisation strain rate ``δ`` [1/s] of a yield term (None: the law's default).
     """
     if spec.law == "none":
         return None
-    assert spec.viscosity is not None and spec.yield_stress is not None
-    return Bingham(spec.viscosity, spec.yield_stress, density, reg)
+    return RHEOLOGIES.get(spec.law).from_spec(spec, density, reg)

@@ -9,14 +9,14 @@ front moves as Ritter's ``2 c0 t`` plus the free fall ``g S t²/2``:
 For the seed's case ``h(x, 0) = 100 - Z = x/3`` on ``x <= 20`` the layer is not uniform; the
 front tip is the characteristic leaving the deepest point of the reservoir edge,
 ``h0 = 20/3`` m at ``x0 = 20`` m, with ``S = 1/3``: 76.8, 158.4, 264.7 m at 2.75, 5.5, 8.25 s.
+
+The paper's fronts of each method (seed §4.1, Table 1 and text; for comparison, not as a
+target) are in the method registry: ``fem_runout.methods.get(name).paper["front"]``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-#: The paper's values (seed §4.1, Table 1 and text) for comparison, not as a target.
-PAPER_FRONT = {"tg2": {5.5: 97.3, 11.0: 240.6}, "dampm": {5.5: 96.2, 11.0: 239.2}}
 
 
 def exact_front(t: float, g: float = 9.81, x0: float = 20.0, h0: float = 20.0 / 3.0,

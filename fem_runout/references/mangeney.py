@@ -7,7 +7,7 @@ frame with constant acceleration: ``h = (2 c0 - x/t - m t/2)²/(9 g cosθ)`` wit
 
 **Horizontal-coordinate form (seed eq. 1).** Our equations have gravity ``g`` along -z, the bed
 ``Z = -S x`` (``S = tanθ``) and Coulomb friction ``-g μ h v/|v|`` (normal stress ``ρ g h``, see
-``physics/friction.py``). In 1D with ``u > 0``::
+``physics/friction/``). In 1D with ``u > 0``::
 
     ∂t h + ∂x(h u) = 0,   ∂t(h u) + ∂x(h u² + g h²/2) = g h (S - μ) = m h,   m = g (S - μ)
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fem_runout.methods import default_method
+
 
 def stoker_middle(h_l: float, h_r: float, g: float) -> tuple[float, float, float]:
     """Middle depth ``h_m``, velocity ``u_m`` and shock speed ``s`` (bisection to round-off)."""
@@ -51,12 +53,14 @@ def stoker_solution(x: np.ndarray, t: float, h_l: float, h_r: float, x0: float,
 
 
 def dam_break_case(h_l: float, h_r: float, x0: float, cells: tuple[int, int], end: float,
-                   method: str = "tg2") -> dict:
+                   method: str | None = None) -> dict:
     """Case of a 1D dam break on the flat strip [0, 100] × [0, 2] m (``h_r = 0``: Ritter).
 
     Walls along the flow, open ends. The node on the dam carries the mean of the two depths,
-    so the Q1 interpolant holds the exact volume when ``x0`` is a node.
+    so the Q1 interpolant holds the exact volume when ``x0`` is a node. ``method`` defaults to
+    the registry's default method (:func:`fem_runout.methods.default_method`).
     """
+    method = method or default_method()
     mid = 0.5 * (h_l + h_r)
     return {
         "name": "dam_break_1d", "method": method, "gravity": 9.81,

@@ -2,7 +2,7 @@
 
 On the plane ``Z = -S x`` (horizontal coordinates, seed eq. 1) a layer of uniform depth ``h``
 and velocity ``u(t)`` has no pressure or depth gradient, so the momentum balance reduces to an
-ODE with the friction of seed eq. 2 (normal stress ``ρ g h``, see ``physics/friction.py``)::
+ODE with the friction of seed eq. 2 (normal stress ``ρ g h``, see ``physics/friction/``)::
 
     du/dt = g (S - μ) - g u²/(ξ h) = a - b u²,   a = g (S - μ),  b = g/(ξ h)
     u(t) = sqrt(a/b) tanh(sqrt(a b) t)             (u(0) = 0, S > μ)

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from fem_runout.config import Case
 from fem_runout.errors import CaseError
 from fem_runout.terrain.dem import read_raster, sample_raster
 from fem_runout.terrain.release import feature_thickness, polygon_depth, read_polygons
 
-__all__ = ["elevation_at", "initial_depth_at", "release_depth"]
+if TYPE_CHECKING:  # fem_runout.config imports this package (lazily): no import back
+    from fem_runout.config import Case
+
+__all__ = ["elevation_at", "initial_depth_at", "inv_cos_slope", "release_depth"]
 
 
 def elevation_at(case: Case, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -41,8 +45,11 @@ def _secant(case: Case) -> tuple[float, float]:
     return (xmax - xmin) / nx, (ymax - ymin) / ny
 
 
-def _inv_cos_slope(case: Case, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``1 / cos(slope) = sqrt(1 + |grad z|²)`` by centred differences over one cell."""
+def inv_cos_slope(case: Case, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``1 / cos(slope) = sqrt(1 + |grad z|²)`` by centred differences over one cell.
+
+    Turns a thickness normal to the slope into a vertical depth (``thickness_normal``).
+    """
     dx, dy = _secant(case)
     zx = (elevation_at(case, x + dx / 2, y) - elevation_at(case, x - dx / 2, y)) / dx
     zy = (elevation_at(case, x, y + dy / 2) - elevation_at(case, x, y - dy / 2)) / dy
@@ -70,7 +77,7 @@ def release_depth(case: Case, x: np.ndarray, y: np.ndarray) -> np.ndarray:
             thickness = feature_thickness(polys, item.thickness, key)
             t = polygon_depth(polys, thickness, x, y, _secant(case), case.domain.extent)
         if item.thickness_normal:
-            t = t * _inv_cos_slope(case, x, y)
+            t = t * inv_cos_slope(case, x, y)
         h += t
     return h
 

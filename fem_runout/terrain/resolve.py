@@ -11,15 +11,18 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fem_runout.config import Case
-from fem_runout.config.geo import DATA_ENV, DATA_PLACEHOLDER, data_folder
 from fem_runout.errors import CaseError
 from fem_runout.terrain.dem import Raster, read_raster
 from fem_runout.terrain.nodes import elevation_at
+from fem_runout.terrain.paths import DATA_ENV, DATA_PLACEHOLDER, data_folder
 from fem_runout.terrain.release import feature_thickness, read_polygons
+
+if TYPE_CHECKING:  # fem_runout.config.loader imports this module (lazily): no import back
+    from fem_runout.config import Case
 
 __all__ = ["resolve_terrain", "same_crs"]
 

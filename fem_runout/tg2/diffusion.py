@@ -38,6 +38,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import BedFrame, SlopeGeometry
+from fem_runout.tg2.low_order import velocity_factor
 
 
 class DiffusionReaction:
@@ -98,8 +99,7 @@ class DiffusionReaction:
     # -- the operator ------------------------------------------------------------------------
     def _velocity(self, q: np.ndarray) -> np.ndarray:
         h = self.h.x.array
-        hs = np.maximum(h, self.tol)
-        f = np.where(h > self.tol, 2.0 * hs / (hs * hs + np.maximum(h, self.kappa) ** 2), 0.0)
+        f = np.where(h > self.tol, velocity_factor(h, self.kappa), 0.0)
         return q * f[:, None]
 
     def diffusion_rate(self, q: np.ndarray) -> np.ndarray:

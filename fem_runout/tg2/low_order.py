@@ -53,6 +53,16 @@ def nodal_velocity(h, qx, qy, kappa, ux, uy):  # noqa: D103 - documented in velo
         uy[i] = qy[i] * f
 
 
+def velocity_factor(h: np.ndarray, kappa: float) -> np.ndarray:
+    """``2 max(h, 0) / (max(h, 0)² + max(h, κ)²)``: ``u = q × factor`` (see :func:`velocity`).
+
+    The one formula of the desingularised velocity; :func:`nodal_velocity` is its compiled
+    loop (the same operations, the same bits).
+    """
+    hp = np.maximum(h, 0.0)
+    return 2.0 * hp / (hp * hp + np.maximum(h, kappa) * np.maximum(h, kappa))
+
+
 def velocity(h, qx, qy, kappa: float, ux, uy) -> None:
     """Nodal velocity, desingularised: ``u = 2 h q / (h² + max(h, κ)²)`` (= q/h for h >= κ).
 

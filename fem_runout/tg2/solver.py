@@ -6,13 +6,8 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.config import Case
-from fem_runout.errors import CaseError
-from fem_runout.initial import depth_below_surface
-from fem_runout.mesh import Discretization, build_discretization
-from fem_runout.parallel import agree_on_errors
-from fem_runout.physics.friction import friction_from_spec
-from fem_runout.physics.rheology import rheology_from_spec
-from fem_runout.physics.slope import slope_geometry
+from fem_runout.mesh import Discretization, zero_wall_normal
+from fem_runout.problem import build_problem
 from fem_runout.tg2.diffusion import DiffusionReaction
 from fem_runout.tg2.transport import Transport
 
@@ -51,6 +46,11 @@ class TG2Solver:
         self.fields = {"h": t.h, "hu": t.hu, "hv": t.hv, "z": t.z}
 
     @property
+    def n_particles(self) -> None:
+        """None: TG2-PC carries no particles."""
+        return None
+
+    @property
     def outflow_volume(self) -> float:
         """Volume that left through open boundaries so far [m³]."""
         return self.transport.outflow_volume
@@ -75,9 +75,7 @@ class TG2Solver:
         q = self.reaction.step(t.state()[:, 1:], dt)
         state = t.state()
         state[:, 1:] = q
-        for side in self.disc.sides:
-            if side.kind == "wall":
-                state[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
+        zero_wall_normal(self.disc.sides, state[:, 1], state[:, 2])
         t.set_state(state)
         remaining = 0.5 * dt
         while remaining > 0.0:
@@ -105,7 +103,7 @@ class TG2Solver:
         (Coulomb stop test). A projection with no mask: moving nodes have ``rest = 0``.
         """
         friction = self.reaction.friction if self.reaction is not None else None
-        if friction is None or friction.mu == 0.0:
+        if friction is None or not friction.has_yield:
             return None
         cap = friction.yield_impulse(state[:, 0], state[:, 1], state[:, 2], dt,
                                      self.reaction.bed(state[:, 1:]))
@@ -138,63 +136,16 @@ class TG2Solver:
         return None
 
 
-def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:
-    """Terrain, depth and momenta at the nodes from the case (every method starts here).
-
-    The elevation comes from ``terrain.dem`` (bilinear on DEM cell centres) or the
-    expression; the depth from ``initial.release`` (polygons, raster), ``initial.depth`` or
-    ``initial.free_surface``.
-    """
-    from fem_runout.terrain import elevation_at, initial_depth_at
-
-    x, y = coords[:, 0], coords[:, 1]
-    z = elevation_at(case, x, y)
-    depth_fn, surface_fn = case.initial.depth_fn(), case.initial.free_surface_fn()
-    released = initial_depth_at(case, x, y)
-    if released is not None:
-        h = released
-    elif depth_fn is not None:
-        h = np.asarray(depth_fn(x, y), dtype=float)
-        scale = max(float(np.abs(h).max()) if h.size else 0.0, 1.0)
-        h[(h < 0) & (h > -1e-12 * scale)] = 0.0  # round-off of the node coordinates
-        if (h < 0).any():
-            raise CaseError(f"initial.depth: must be >= 0 everywhere, min is {h.min():g}")
-    else:
-        h = depth_below_surface(surface_fn(x, y), z)
-    for key, values in (("terrain.elevation", z), ("initial.depth/free_surface", h)):
-        bad = ~np.isfinite(values)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise CaseError(f"{key}: the expression gives NaN or inf at {int(bad.sum())} nodes, "
-                            f"e.g. x={x[i]:g}, y={y[i]:g}; it must be finite on the whole domain")
-    u_fn, v_fn = case.initial.velocity_fns()
-    return {"z": z, "h": h, "hu": h * u_fn(x, y), "hv": h * v_fn(x, y)}
-
-
-def resolved_thin_depth(case: Case, comm: MPI.Comm, h: np.ndarray) -> float:
-    """``numerics.thin_depth``, or 1e-6 × the largest initial depth when unset (collective)."""
-    if case.numerics.thin_depth is not None:
-        return float(case.numerics.thin_depth)
-    return 1e-6 * comm.allreduce(float(h.max()) if h.size else 0.0, op=MPI.MAX)
-
-
 def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
-    """Create the TG2-PC solver of a case (collective)."""
-    disc = build_discretization(
-        comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
-    )
-    init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
+    """Create the TG2-PC solver of a case (collective): the shared setup plus its operators."""
+    pb = build_problem(case, comm)
     num = case.numerics
-    thin = resolved_thin_depth(case, comm, init["h"])
-    slope = slope_geometry(disc, init["z"], case.gravity, case.model.curvature) \
-        if case.slope_form else None
-    transport = Transport(disc, case.gravity, num.dry_tolerance, thin, num.fct, slope)
+    transport = Transport(pb.disc, pb.gravity, num.dry_tolerance, pb.thin_depth, num.fct,
+                          pb.slope)
     for name in ("z", "h", "hu", "hv"):
-        getattr(transport, name).x.array[:] = init[name]
-    friction = friction_from_spec(case.material.friction, case.gravity, num.dry_tolerance)
-    rheology = rheology_from_spec(case.material.rheology, case.material.density)
+        getattr(transport, name).x.array[:] = pb.init[name]
     reaction = None
-    if friction is not None or rheology is not None:
-        reaction = DiffusionReaction(disc, transport.h, friction, rheology, num.dry_tolerance,
-                                     thin, slope)
-    return TG2Solver(disc, transport, reaction, case.time.cfl)
+    if pb.friction is not None or pb.rheology is not None:
+        reaction = DiffusionReaction(pb.disc, transport.h, pb.friction, pb.rheology,
+                                     num.dry_tolerance, pb.thin_depth, pb.slope)
+    return TG2Solver(pb.disc, transport, reaction, case.time.cfl)

@@ -21,8 +21,9 @@ import numpy as np
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization, GhostReducer, facet_measures
+from fem_runout.mesh import Discretization, GhostReducer, facet_measures, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
+from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.limiter import Limiter
@@ -31,6 +32,7 @@ from fem_runout.tg2.low_order import (
     low_order_pass,
     reconstructed_surface,
     velocity,
+    velocity_factor,
 )
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
@@ -160,7 +162,7 @@ class Transport:
         s = self._slope[own] * wet
         local = float(s.max()) if s.size else 0.0
         top = self.disc.comm.allreduce(local, op=MPI.MAX)
-        return float(np.sqrt(min(self.disc.spacing) / (self.g * top))) if top > 0 else np.inf
+        return acceleration_limit(min(self.disc.spacing), self.g, top)
 
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L (self._lo) and capacities (self._cap) of the state."""
@@ -222,8 +224,7 @@ class Transport:
         Qk[self._dof0] = vals
         hk = vals[:, 0]
         self.etak.x.array[self._dofs0] = eta_mean + delta[:, 0]
-        hk_pos = np.maximum(hk, 0.0)
-        factor = 2.0 * hk_pos / (hk_pos**2 + np.maximum(hk, self.kappa) ** 2)
+        factor = velocity_factor(hk, self.kappa)
         self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
         for vec, form in zip(self.b_corr, self.corr_form, strict=True):
             vec.array[:] = 0.0
@@ -274,9 +275,7 @@ class Transport:
     def _finalise(self, q: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping."""
         d = self.disc
-        for side in d.sides:
-            if side.kind == "wall":
-                q[side.nodes, 1 if side.normal[0] != 0.0 else 2] = 0.0
+        zero_wall_normal(d.sides, q[:, 1], q[:, 2])
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
         # so that the runner stops with a message
         local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0

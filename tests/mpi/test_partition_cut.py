@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from fem_runout.config import load_case
 from fem_runout.mesh import build_discretization
+from fem_runout.methods import method_names
 from fem_runout.references.norms import l1, nodal_weights
 from fem_runout.references.stoker import dam_break_case, exact_depth
 from tests.tg2_helpers import assert_same_on_ranks
@@ -42,7 +43,7 @@ def test_the_strip_is_cut_into_one_piece_per_rank():
     assert len(CUTS) == WORLD.size - 1
 
 
-@pytest.mark.parametrize("method", ["tg2", "mpm"])
+@pytest.mark.parametrize("method", method_names())
 @pytest.mark.parametrize("where", ["cut", "away"])
 @pytest.mark.parametrize("h_r", [0.1, 0.01, 0.0], ids=["stoker10", "stoker100", "ritter"])
 def test_dam_break_on_and_off_the_cut(method, where, h_r):
