@@ -169,7 +169,7 @@ class MPMSolver:
             v = flip * (p.v + dv) + (1.0 - flip) * v
         p.u, p.v = u, v
         _, _, grad = g2p(b.nodes, b.N, b.dN, *self._remapped_velocity())
-        self._update_depth_and_stress(dt, grad)
+        self.update_depth_and_stress(dt, grad)
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
         self.particles = self.splitter.split(self.particles)
@@ -252,8 +252,8 @@ class MPMSolver:
         zero_wall_normal(self.walls, vx, vy)
         return vx, vy
 
-    def _update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
-        """Depth (eq. 42) and stress (eqs. 40-41) from the grid velocity gradient."""
+    def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
+        """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""
         p = self.particles
         factor = 1.0 + dt * (grad[:, 0, 0] + grad[:, 1, 1])
         if not (factor > 0.0).all():  # squeezed past zero in one step: stop, state kept

@@ -12,6 +12,7 @@ from fem_runout.physics.friction import (
     LAWS,
     Coulomb,
     FrictionLaw,
+    Manning,
     Parameter,
     ParameterError,
     Voellmy,
@@ -277,3 +278,20 @@ def test_every_law_and_key_is_documented_in_the_case_schema():
         assert f"`{law.name}`" in table
         for p in law.parameters:
             assert f"| `{p.name}` |" in table
+
+
+@pytest.mark.parametrize("law", [Voellmy(0.2, 500.0), Coulomb(0.3), Manning(0.05)])
+def test_only_wet_nodes_are_solved_and_the_bits_do_not_change(law):
+    """The update works on the wet nodes only; each node's result is that of a solve alone."""
+    rng = np.random.default_rng(7)
+    n = 400
+    h = np.where(rng.random(n) < 0.7, 0.0, rng.random(n) * 2.0)
+    h[::37] = 0.5 * law.dry_tol  # wet by a hair's breadth less than the dry tolerance
+    sx, sy = rng.normal(size=n) * h * 3.0, rng.normal(size=n) * h * 3.0
+    qx, qy = law.implicit_update(h, sx, sy, sx, sy, 0.05)
+    wet = h > law.dry_tol
+    assert np.all(qx[~wet] == 0.0) and np.all(qy[~wet] == 0.0)
+    for i in np.flatnonzero(wet)[:40]:
+        one = law.implicit_update(h[i:i + 1], sx[i:i + 1], sy[i:i + 1], sx[i:i + 1],
+                                  sy[i:i + 1], 0.05)
+        assert one[0][0] == qx[i] and one[1][0] == qy[i]

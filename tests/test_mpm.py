@@ -146,10 +146,10 @@ def test_a_collapsing_column_stops_the_run_with_the_state_kept():
     grad = np.zeros((len(p), 2, 2))
     grad[:, 0, 0] = grad[:, 1, 1] = -0.25  # converging: 1 + dt tr = 1 - 0.5 dt
     grad[7, 0, 0] = -2.0  # one column squeezed past zero at dt = 0.5
-    solver._update_depth_and_stress(0.5, grad)
+    solver.update_depth_and_stress(0.5, grad)
     message = solver.health()
     assert message is not None and "collapsed" in message and f"particle {p.id[7]}" in message
     assert np.array_equal(solver.particles.h, h0)
-    solver._update_depth_and_stress(0.5, np.where(np.arange(len(p))[:, None, None] == 7,
+    solver.update_depth_and_stress(0.5, np.where(np.arange(len(p))[:, None, None] == 7,
                                                   0.0, grad))
     assert np.allclose(solver.particles.h[:7], h0[:7] / 0.75, rtol=1e-15)

@@ -53,22 +53,31 @@ def nodal_speed(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, threshold: float)
     return speed
 
 
-def _owned(solver: Solver) -> tuple[np.ndarray, ...]:
-    """Owned slices of ``x, m, h, hu, hv`` of a solver."""
+def _owned(solver: Solver, x: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """Owned slices of ``x, m, h, hu, hv`` of a solver (``x`` given: not tabulated again)."""
     n = solver.V.dofmap.index_map.size_local
-    x = solver.V.tabulate_dof_coordinates()[:n, 0]
+    if x is None:
+        x = owned_x(solver)
     m = np.asarray(solver.lumped_mass[:n], dtype=np.float64)
     h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
     return x, m, h, hu, hv
 
 
-def compute_diagnostics(solver: Solver, threshold: float, density: float) -> dict[str, float]:
+def owned_x(solver: Solver) -> np.ndarray:
+    """Return the x coordinate of the owned nodes (for :func:`compute_diagnostics`'s ``x``)."""
+    n = solver.V.dofmap.index_map.size_local
+    return solver.V.tabulate_dof_coordinates()[:n, 0].copy()
+
+
+def compute_diagnostics(solver: Solver, threshold: float, density: float,
+                        x: np.ndarray | None = None) -> dict[str, float]:
     """Global diagnostics of the current state (collective; owned dofs only).
 
     Args:
         solver: The solver (see :class:`fem_runout.solver_api.Solver`).
         threshold: Dry threshold [m]: nodes with ``h > threshold`` are wet.
         density: Bulk density [kg/m^3] for the kinetic energy.
+        x: :func:`owned_x` of the solver, if already known (saves tabulating it).
 
     Returns:
         ``volume`` [m^3] (``sum m_i h_i``), ``kinetic_energy`` [J] (``sum m_i rho/2 |hu|^2/h``
@@ -77,7 +86,7 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float) -> dic
         ``outflow`` [m^3] (``solver.outflow_volume``). The same on every rank.
     """
     comm = solver.comm
-    x, m, h, hu, hv = _owned(solver)
+    x, m, h, hu, hv = _owned(solver, x)
     wet = h > threshold
     q2 = hu[wet] ** 2 + hv[wet] ** 2
     local_sums = np.array(
@@ -132,6 +141,7 @@ class SeriesRecorder:
         self._columns: dict[str, list[float]] = {name: [] for name in SERIES_COLUMNS}
         self._last_step: int | None = None
         self._rank = 0
+        self._x: np.ndarray | None = None
 
     @property
     def series(self) -> dict[str, np.ndarray]:
@@ -140,7 +150,7 @@ class SeriesRecorder:
 
     def _record(self, solver: Solver, info: StepInfo) -> None:
         """Append one row for the current state (collective)."""
-        diag = compute_diagnostics(solver, self.threshold, self.density)
+        diag = compute_diagnostics(solver, self.threshold, self.density, self._x)
         v0 = self.initial_volume
         balance = diag["volume"] + diag["outflow"] - v0
         row = {"t": info.t, "dt": info.dt, **diag}
@@ -165,7 +175,9 @@ class SeriesRecorder:
     def start(self, solver: Solver, info: StepInfo) -> None:
         """Record the initial volume and the first row."""
         self._rank = solver.comm.rank
-        self.initial_volume = compute_diagnostics(solver, self.threshold, self.density)["volume"]
+        self._x = owned_x(solver)
+        self.initial_volume = compute_diagnostics(solver, self.threshold, self.density,
+                                                  self._x)["volume"]
         self._record(solver, info)
 
     def step(self, solver: Solver, info: StepInfo) -> None:

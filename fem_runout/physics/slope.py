@@ -52,6 +52,10 @@ class BedFrame:
     cos: np.ndarray
     normal: np.ndarray
 
+    def take(self, nodes: np.ndarray) -> BedFrame:
+        """Return the frame of a subset of the nodes (indices)."""
+        return BedFrame(self.grad[nodes], self.cos[nodes], np.asarray(self.normal)[nodes])
+
     def stretch(self, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
         """``|U|/|u| = sqrt(1 + (n·∇Z)²)`` for the horizontal direction ``n`` of motion."""
         along = nx * self.grad[:, 0] + ny * self.grad[:, 1]

@@ -281,7 +281,19 @@ class FrictionLaw:
             FloatingPointError: If Newton does not converge (it should not happen).
         """
         h, qx, qy, sx, sy = (np.asarray(a, dtype=float) for a in (h, qx, qy, qx_star, qy_star))
-        theta = float(dt_mu)
+        wet = np.flatnonzero(h > self.dry_tol)
+        if wet.size == h.size:
+            return self._update_wet(h, qx, qy, sx, sy, float(dt_mu), bed)
+        # the work is per node: only the wet nodes (where the flow is) are solved, the same bits
+        out_x, out_y = np.zeros_like(h), np.zeros_like(h)
+        out_x[wet], out_y[wet] = self._update_wet(
+            h[wet], qx[wet], qy[wet], sx[wet], sy[wet], float(dt_mu),
+            None if bed is None else bed.take(wet))
+        return out_x, out_y
+
+    def _update_wet(self, h: Array, qx: Array, qy: Array, sx: Array, sy: Array, theta: float,
+                    bed: BedFrame | None) -> tuple[Array, Array]:
+        """:meth:`implicit_update` on nodes that may be dry or wet (the formula itself)."""
         wet = h > self.dry_tol
         hw = np.where(wet, h, 1.0)
         norm = np.hypot(sx, sy)
