@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import math
 
+from fem_runout.references.voellmy_sheet import strip_case
+
 #: Horizontal-form sheet: slope S, roughness n [s/m^(1/3)], vertical depth [m].
 SLOPE, N, H = 0.3, 0.05, 1.0
 #: Measured here (the boundaries' disturbances have not reached it by :func:`case_dict`'s end).
@@ -87,17 +89,8 @@ def case_dict(cells: int, g: float = 9.81) -> dict:
     supercritical after 1 s. So :data:`WINDOW` keeps the uniform layer of the exact solution.
     """
     end = RELAXATIONS * relaxation_time(g=g)
-    return {
-        "name": "manning_sheet", "gravity": g,
-        "domain": {"extent": [0, 400, 0, 4], "cells": [cells, 2],
-                   "boundary": {"left": "wall", "right": "open", "bottom": "wall",
-                                "top": "wall"}},
-        "terrain": {"elevation": f"-{SLOPE} * x"},
-        "initial": {"depth": str(H), "velocity": ["0", "0"]},
-        "material": {"density": 1200, "friction": {"law": "manning", "n": N}},
-        "model": {"form": "horizontal"},
-        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
-    }
+    return strip_case("manning_sheet", cells, 400.0, f"-{SLOPE} * x", str(H),
+                      {"law": "manning", "n": N}, end, g, form="horizontal")
 
 
 def slope_case(cells: int, g: float = 9.81) -> dict:
@@ -109,14 +102,6 @@ def slope_case(cells: int, g: float = 9.81) -> dict:
     """
     th = math.radians(THETA)
     end = RELAXATIONS * slope_relaxation_time(g=g)
-    return {
-        "name": "manning_slope", "gravity": g,
-        "domain": {"extent": [0, 800, 0, 4], "cells": [cells, 2],
-                   "boundary": {"left": "wall", "right": "open", "bottom": "wall",
-                                "top": "wall"}},
-        "terrain": {"elevation": f"-{math.tan(th)!r} * x"},
-        "initial": {"depth": repr(H_N / math.cos(th)), "velocity": ["0", "0"]},
-        "material": {"density": 1200, "friction": {"law": "manning", "n": SLOPE_N}},
-        "model": {"form": "slope"},
-        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
-    }
+    return strip_case("manning_slope", cells, 800.0, f"-{math.tan(th)!r} * x",
+                      repr(H_N / math.cos(th)), {"law": "manning", "n": SLOPE_N}, end, g,
+                      form="slope")

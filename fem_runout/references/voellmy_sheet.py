@@ -31,6 +31,28 @@ def relaxation_time(slope: float, mu: float, xi: float, h: float, g: float = 9.8
     return 1.0 / math.sqrt(g * (slope - mu) * g / (xi * h))
 
 
+def strip_case(name: str, cells: int, length: float, elevation: str, depth: str,
+               friction: dict, end: float, g: float = 9.81, form: str | None = None) -> dict:
+    """Return a sheet case: a ``length`` × 4 m strip on ``cells`` × 2 cells, at rest at t = 0.
+
+    Wall upstream and on the sides, open downstream; density 1200 kg/m³, CFL 0.9, one output at
+    ``end``; ``form`` sets ``model.form`` (None: the default, horizontal without a DEM).
+    """
+    case = {
+        "name": name, "gravity": g,
+        "domain": {"extent": [0, length, 0, 4], "cells": [cells, 2],
+                   "boundary": {"left": "wall", "right": "open", "bottom": "wall",
+                                "top": "wall"}},
+        "terrain": {"elevation": elevation},
+        "initial": {"depth": depth, "velocity": ["0", "0"]},
+        "material": {"density": 1200, "friction": friction},
+        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
+    }
+    if form is not None:
+        case["model"] = {"form": form}
+    return case
+
+
 def case_dict(cells: int, slope: float = 0.3, mu: float = 0.1, xi: float = 500.0,
               h: float = 1.0, end: float | None = None, g: float = 9.81) -> dict:
     """Return the case: a 400 m × 4 m strip (wall upstream and on the sides, open downstream).
@@ -39,16 +61,8 @@ def case_dict(cells: int, slope: float = 0.3, mu: float = 0.1, xi: float = 500.0
     [250, 350] m keeps the uniform layer of the exact solution for ``end`` <= 3 relaxation times.
     """
     end = 3.0 * relaxation_time(slope, mu, xi, h, g) if end is None else end
-    return {
-        "name": "voellmy_sheet", "gravity": g,
-        "domain": {"extent": [0, 400, 0, 4], "cells": [cells, 2],
-                   "boundary": {"left": "wall", "right": "open", "bottom": "wall",
-                                "top": "wall"}},
-        "terrain": {"elevation": f"-{slope} * x"},
-        "initial": {"depth": str(h), "velocity": ["0", "0"]},
-        "material": {"density": 1200, "friction": {"law": "voellmy", "mu": mu, "xi": xi}},
-        "time": {"end": end, "cfl": 0.9}, "output": {"every": end},
-    }
+    return strip_case("voellmy_sheet", cells, 400.0, f"-{slope} * x", str(h),
+                      {"law": "voellmy", "mu": mu, "xi": xi}, end, g)
 
 
 WINDOW = (250.0, 350.0)

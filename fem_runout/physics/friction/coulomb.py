@@ -1,11 +1,9 @@
-"""Coulomb bed friction: seed eq. 2 without its turbulent term."""
+"""Coulomb bed friction: seed eq. 2 without its turbulent term (Voellmy with ξ = ∞)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
+import math
+from typing import TYPE_CHECKING
 
 from fem_runout.physics.friction.base import (
     GAMMA,
@@ -13,22 +11,22 @@ from fem_runout.physics.friction.base import (
     MU,
     PHI_DEG,
     FrictionLaw,
-    check_one_coulomb_key,
     coulomb_coefficient,
 )
+from fem_runout.physics.friction.voellmy import Voellmy
 
 if TYPE_CHECKING:
     from fem_runout.config.schema import FrictionSpec
-    from fem_runout.physics.slope import BedFrame
 
 __all__ = ["Coulomb"]
 
 
-class Coulomb(FrictionLaw):
+class Coulomb(Voellmy):
     """Coulomb bed friction, seed eq. 2 without the turbulent term: ``r = -g μ h sgn|v| v/|v|``.
 
-    Case keys: ``mu`` or ``phi_deg`` (exactly one), ``gamma`` (default :data:`GAMMA_DEFAULT`).
-    A layer stays at rest where the slope is below ``μ`` (``has_yield``).
+    The seed's special case of Voellmy with ``ξ = ∞`` (``inv_xi = 1/∞ = 0``: no drag). Case
+    keys: ``mu`` or ``phi_deg`` (exactly one), ``gamma`` (default :data:`GAMMA_DEFAULT`). A
+    layer stays at rest where the slope is below ``μ`` (``has_yield``).
 
     Args:
         mu: Friction coefficient ``tanφ`` [-].
@@ -45,22 +43,10 @@ class Coulomb(FrictionLaw):
 
     def __init__(self, mu: float, gravity: float = 9.81, gamma: float = GAMMA_DEFAULT,
                  dry_tol: float = 1e-6) -> None:
-        super().__init__(mu, gravity, gamma, dry_tol)
-        self.inv_xi = 0.0
+        super().__init__(mu, math.inf, gravity, gamma, dry_tol)
 
-    @property
-    def xi(self) -> float:
-        """Turbulence coefficient ``ξ``: infinite (no turbulent term)."""
-        return float("inf")
-
-    def drag_coefficient(self, h: np.ndarray, bed: BedFrame | None) -> float:
-        """No drag: ``k = 0``."""
-        return self.inv_xi
-
-    @classmethod
-    def check_parameters(cls, given: Mapping[str, Any]) -> None:
-        """Exactly one of ``mu`` and ``phi_deg``."""
-        check_one_coulomb_key(cls.name, given)
+    def _shown(self) -> dict[str, float]:
+        return FrictionLaw._shown(self)
 
     @classmethod
     def from_spec(cls, spec: FrictionSpec, gravity: float, dry_tol: float) -> Coulomb:
