@@ -97,8 +97,10 @@ REFERENCES = {
     "hemisphere": (
         "Reference: symmetry (seed §4.1.1). h = sqrt(25 − |x − (25, 25)|²) on [0, 50]², flat, "
         "frictionless, open, t = 1.2 s; the exact flow is radially symmetric, so the front "
-        "radius (h > 1e-3 m) along x, y, −x and the diagonal must agree; one cell along the "
-        "diagonal is sqrt(2) dx. The seed reports a diameter of about 13 m at 1.2 s."),
+        "radius (where h falls to 1e-3 m, linearly interpolated between the last node above "
+        "and the next one on the ray: continuous in the data, not quantised to a cell) along "
+        "x, y, −x and the diagonal must agree; one cell along the diagonal is sqrt(2) dx. The "
+        "seed reports a diameter of about 13 m at 1.2 s."),
     "lake_at_rest": (
         "Reference: the still state h + Z = 10 m, v = 0 (seed §4.2, eq. 47–48) over three "
         "Gaussian bumps, two of them emerging (dry), with the seed's full material (Voellmy "
@@ -135,7 +137,7 @@ well-balancing; both pass every hard case.
   error does not decrease monotonically (it is a time-integration error, dt ∝ dx).
 - Lake at rest with the full seed material: exactly 0 at every level (the paper: 1e-13 to
   1e-14). Hemisphere: the front radius is the same along x, y and −x to the bit, and the
-  diagonal agrees within one diagonal cell; the radius (14.5 m) is larger than the paper's
+  diagonal agrees within a fraction of a cell; the radius (about 14.7 m) is larger than the paper's
   "about 13 m diameter", which cannot be reconciled with any 1e-3 m threshold.
 
 - The synchronized limiter of session 7 (docs/limiter.md, "Synchronized limiting") made the

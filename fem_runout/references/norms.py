@@ -34,7 +34,12 @@ def linf(values: np.ndarray) -> float:
 
 
 def front_radius(x, y, h, center, threshold, direction) -> float:
-    """Largest distance from ``center`` along a ray where ``h > threshold`` (nodes on the ray).
+    """Distance from ``center`` along a ray to where ``h`` falls to ``threshold``.
+
+    The nodes on the ray (within 1e-6 of it, ``along >= 0``) are sorted by distance; past the
+    last node with ``h > threshold`` the crossing is interpolated linearly towards the next
+    node. The radius is continuous in the data (a node's depth passing the threshold moves it
+    by round-off, not by a cell), so sub-cell differences between directions show.
 
     Args:
         x: Gathered node x-coordinates.
@@ -42,10 +47,19 @@ def front_radius(x, y, h, center, threshold, direction) -> float:
         h: Gathered depth.
         center: (xc, yc), a node of the grid.
         threshold: Wet threshold [m].
-        direction: Unit vector; only nodes within 1e-6 of the ray are used.
+        direction: Unit vector.
     """
     dx, dy = x - center[0], y - center[1]
     along = dx * direction[0] + dy * direction[1]
     across = np.abs(dx * direction[1] - dy * direction[0])
-    on_ray = (across < 1e-6) & (along >= 0) & (h > threshold)
-    return float(along[on_ray].max()) if on_ray.any() else 0.0
+    ray = (across < 1e-6) & (along >= 0)
+    order = np.argsort(along[ray], kind="stable")
+    dist, depth = along[ray][order], h[ray][order]
+    wet = np.flatnonzero(depth > threshold)
+    if wet.size == 0:
+        return 0.0
+    k = int(wet[-1])
+    if k + 1 == dist.size:
+        return float(dist[k])
+    share = (depth[k] - threshold) / (depth[k] - depth[k + 1])
+    return float(dist[k] + share * (dist[k + 1] - dist[k]))
