@@ -25,6 +25,7 @@ from fem_runout.mesh import Discretization, GhostReducer, facet_measures, zero_w
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
+from fem_runout.tg2.active import ActiveForms
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
@@ -60,6 +61,7 @@ class Transport:
         thin_depth: float,
         fct_enabled: bool = True,
         slope: SlopeGeometry | None = None,
+        active_set: bool = True,
     ) -> None:
         self.disc = disc
         self.g = float(gravity)
@@ -103,6 +105,9 @@ class Transport:
         self._dof0 = _as_slice(self._dof0)
         self._dofs0 = _as_slice(self._dofs0)
         self.reducer = GhostReducer(disc)
+        #: the forms on the cells near the flow (same bits as the whole mesh), or None
+        self.active = ActiveForms(disc, self.reducer, [self.pred_form, *self.corr_form]) \
+            if active_set else None
         self.limiter = Limiter(disc, self.reducer, self.gn, self.kappa)
         self.outflow_volume = 0.0
         no = disc.n_owned_cells
@@ -191,8 +196,10 @@ class Transport:
             eta_t[self._dofsd] = cell_eta
         if self.slope is not None:
             self.gk.x.array[self._dofs0] = self.gn[d.cell_nodes].mean(axis=1)
-        high = self._high_order(cell_eta)
         q0 = self.state()
+        forms = [self.pred_form, *self.corr_form] if self.active is None else \
+            self.active.update(q0)
+        high = self._high_order(cell_eta, forms[0], forms[1:])
         low_rate = self._low_order_rates(h, hu, hv)
         q_low = q0 + dt * low_rate
         aec = high - dt * self._lo
@@ -207,12 +214,13 @@ class Transport:
         self.set_state(q_new)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _high_order(self, cell_eta: np.ndarray) -> np.ndarray:
+    def _high_order(self, cell_eta: np.ndarray, pred_form: fem.Form,
+                    corr_forms: list[fem.Form]) -> np.ndarray:
         """Predictor (DG0) then corrector element contributions A_H (owned cells, × dt)."""
         d = self.disc
         b = self.b_pred
         b.array[:] = 0.0
-        fem.assemble_vector(b.array, self.pred_form)
+        fem.assemble_vector(b.array, pred_form)
         Qk = self.Qk.x.array.reshape(-1, 3)
         Qk[self._dof0] = b.array.reshape(-1, 3)[self._dof0] / d.cell_area[:, None]
         self.Qk.x.scatter_forward()
@@ -226,7 +234,7 @@ class Transport:
         self.etak.x.array[self._dofs0] = eta_mean + delta[:, 0]
         factor = velocity_factor(hk, self.kappa)
         self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
-        for vec, form in zip(self.b_corr, self.corr_form, strict=True):
+        for vec, form in zip(self.b_corr, corr_forms, strict=True):
             vec.array[:] = 0.0
             fem.assemble_vector(vec.array, form)
             vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact

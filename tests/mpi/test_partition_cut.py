@@ -61,3 +61,17 @@ def test_dam_break_on_and_off_the_cut(method, where, h_r):
     assert par.t == pytest.approx(END)
     assert np.all(par.h >= 0.0)
     assert err < MAX_ERROR
+
+
+def test_the_active_set_on_ranks_gives_the_same_bits():
+    """Issue 16: TG2-PC's active set grows across the partition cut mid-run (Ritter)."""
+    from fem_runout.api import run
+    from fem_runout.methods import default_method
+
+    base = dam_break_case(1.0, 0.0, CUTS[0] - 10.0, CELLS, END, default_method())
+    on = run(load_case(base), write=False, comm=WORLD)
+    off = run(load_case(base, [("numerics.active_set", False)]), write=False, comm=WORLD)
+    if WORLD.rank == 0:
+        for key in ("h", "hu", "hv", "peak_depth"):
+            assert np.array_equal(getattr(on, key), getattr(off, key)), key
+        assert on.peak_depth[np.abs(on.x - CUTS[0]) < 1e-9].max() > 0.0  # it crossed the cut
