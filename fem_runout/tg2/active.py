@@ -87,6 +87,8 @@ class ActiveForms:
         self.forms: list[fem.Form] = list(forms)
         self.inner: np.ndarray | None = None  # nodes within rings - 1 hops of the wet ones
         self.active_cells = disc.cell_nodes.shape[0]
+        #: indices of the active owned cells (the cells the numba kernels visit)
+        self.owned = np.arange(disc.n_owned_cells)
         self.rebuilds = 0
 
     def update(self, q: np.ndarray) -> list[fem.Form]:
@@ -102,6 +104,7 @@ class ActiveForms:
         active = hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0
         self.forms = [restrict_form(f, active) for f in self.full]
         self.active_cells = int(active.sum())
+        self.owned = np.flatnonzero(active[: self.disc.n_owned_cells])
         self.rebuilds += 1
         return self.forms
 

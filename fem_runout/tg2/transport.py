@@ -119,6 +119,7 @@ class Transport:
         self._means, self._eta_mean = np.empty((nc, 3)), np.empty(nc)
         self._cell_eta = np.empty((nc, 4))
         self._fresh = False  # low-order rates of the current state are in self._lo
+        self._active_key, self._active_cache = -1, (self._owned, self._beta, self._cellC)
 
     # -- state -----------------------------------------------------------------------------
     def state(self) -> np.ndarray:
@@ -176,9 +177,28 @@ class Transport:
         if self.slope is not None:
             self.gn[:] = self.slope.pressure_gravity(self.ux.x.array, self.uy.x.array)
         self._cap[:] = 0.0
-        low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
-                       self.uy.x.array, self.gn, self.kappa, self._lo, self._cap)
+        if self.active is None:
+            low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
+                           self.uy.x.array, self.gn, self.kappa, self._lo, self._cap)
+        else:  # dry cells give exact zeros: visit the active ones only (tg2/active.py)
+            self.active.update(self.state())
+            cells, beta, cc = self._active_arrays()
+            lo, cap = np.empty((cells.shape[0], 4, 3)), np.zeros((cells.shape[0], 4))
+            low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
+                           self.gn, self.kappa, lo, cap)
+            self._lo[:] = 0.0
+            self._lo[self.active.owned], self._cap[self.active.owned] = lo, cap
         self._fresh = True
+
+    def _active_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Node indices, pair and ``C`` coefficients of the active owned cells (cached)."""
+        if self._active_key != self.active.rebuilds:
+            idx = self.active.owned
+            self._active_cache = (np.ascontiguousarray(self._owned[idx]),
+                                  np.ascontiguousarray(self._beta[idx]),
+                                  np.ascontiguousarray(self._cellC[idx]))
+            self._active_key = self.active.rebuilds
+        return self._active_cache
 
     def step(self, dt: float) -> None:
         """Advance (h, hu, hv) by ``dt``."""
