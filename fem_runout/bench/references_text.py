@@ -8,10 +8,6 @@ from __future__ import annotations
 #: Seed Table 1 (relative front errors) and §4.1 text (front positions): e5.5, e11, x5.5, x11.
 PAPER_TABLE1 = {"IMEX-TG2-PC (paper)": ("0.0039", "0.0121", "97.3", "240.6"),
                 "DAMPM (paper)": ("0.0074", "0.0054", "96.2", "239.2")}
-#: Seed Table 2: (DAMPM L1, DAMPM L∞, TG2 L1, TG2 L∞) per variable.
-PAPER_TABLE2 = {"h": ("1.26e-12", "1.26e-14", "2.68e-13", "8.92e-15"),
-                "hu": ("1.08e-13", "3.57e-14", "2.38e-13", "1.41e-14"),
-                "hv": ("1.22e-13", "3.25e-14", "1.67e-13", "2.02e-14")}
 
 REFERENCES = {
     "stoker": (
