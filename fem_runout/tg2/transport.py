@@ -119,7 +119,7 @@ class Transport:
         self._means, self._eta_mean = np.empty((nc, 3)), np.empty(nc)
         self._cell_eta = np.empty((nc, 4))
         self._fresh = False  # low-order rates of the current state are in self._lo
-        self._active_key, self._active_cache = -1, (self._owned, self._beta, self._cellC)
+        self._active_key, self._active_cache = -1, ()
 
     # -- state -----------------------------------------------------------------------------
     def state(self) -> np.ndarray:
@@ -182,21 +182,25 @@ class Transport:
                            self.uy.x.array, self.gn, self.kappa, self._lo, self._cap)
         else:  # dry cells give exact zeros: visit the active ones only (tg2/active.py)
             self.active.update(self.state())
-            cells, beta, cc = self._active_arrays()
-            lo, cap = np.empty((cells.shape[0], 4, 3)), np.zeros((cells.shape[0], 4))
+            cells, beta, cc, lo, cap = self._active_arrays()
+            cap[:] = 0.0
             low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
                            self.gn, self.kappa, lo, cap)
             self._lo[:] = 0.0
             self._lo[self.active.owned], self._cap[self.active.owned] = lo, cap
         self._fresh = True
 
-    def _active_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Node indices, pair and ``C`` coefficients of the active owned cells (cached)."""
+    def _active_arrays(self) -> tuple[np.ndarray, ...]:
+        """Return the active owned cells' nodes, pair and ``C`` coefficients and buffers.
+
+        Cached until the active set is rebuilt.
+        """
         if self._active_key != self.active.rebuilds:
             idx = self.active.owned
             self._active_cache = (np.ascontiguousarray(self._owned[idx]),
                                   np.ascontiguousarray(self._beta[idx]),
-                                  np.ascontiguousarray(self._cellC[idx]))
+                                  np.ascontiguousarray(self._cellC[idx]),
+                                  np.empty((idx.size, 4, 3)), np.empty((idx.size, 4)))
             self._active_key = self.active.rebuilds
         return self._active_cache
 
@@ -217,8 +221,9 @@ class Transport:
         if self.slope is not None:
             self.gk.x.array[self._dofs0] = self.gn[d.cell_nodes].mean(axis=1)
         q0 = self.state()
+        # the low-order pass of this state (here or in stable_dt) updated the active set
         forms = [self.pred_form, *self.corr_form] if self.active is None else \
-            self.active.update(q0)
+            self.active.forms
         high = self._high_order(cell_eta, forms[0], forms[1:])
         low_rate = self._low_order_rates(h, hu, hv)
         q_low = q0 + dt * low_rate
