@@ -5,8 +5,9 @@ factor ``h`` or ``q``: ``∇·q``, ``q⊗u``, ``g h ∇η``, the edge fluctuatio
 open-side ``g h ∂Z/∂n``. A cell whose nodes are all exactly dry has a zero predictor, and a
 cell whose nodes and whose neighbours' nodes are all dry has zero corrector terms: leaving
 them out of the assembly gives the same bits. The active cells are those with a node within
-``rings`` node hops of a node where ``(h, hu, hv) ≠ 0``; the forms are the run's compiled
-forms instantiated on those cells and their facets (no JIT). A step needs the wet nodes'
+``rings`` node hops of a node where ``(h, hu, hv) ≠ 0``; the forms are assembled by the
+numba :class:`~fem_runout.assembly.VectorAssembler` with the run's compiled FFCx kernels on
+those cells and their facets (no JIT, no per-call DOLFINx overhead). A step needs the wet nodes'
 cells and one ring; the set is rebuilt (collectively) when a wet node leaves the inner
 ``rings - 1`` hops, so a rebuild happens about every ``rings - 1`` rings the flow advances,
 not every step.
@@ -22,38 +23,27 @@ from dolfinx import fem
 from dolfinx.fem import IntegralType
 from mpi4py import MPI
 
+from fem_runout.assembly import VectorAssembler
 from fem_runout.mesh import Discretization, GhostReducer
 
-__all__ = ["ActiveForms", "restrict_form"]
+__all__ = ["ActiveForms", "restrict"]
 
 #: Node hops around the wet nodes that the active set covers.
 RINGS = 4
 
 
-def restrict_form(form: fem.Form, active: np.ndarray) -> fem.Form:
-    """Return ``form`` on the active cells: cell integrals, facets touching an active cell.
+def restrict(assembler: VectorAssembler, active: np.ndarray) -> VectorAssembler:
+    """Return ``assembler`` on the active cells: cell integrals, facets touching an active cell.
 
-    The kernels, coefficients and constants are the compiled form's; only the integration
-    entities change, filtered in their original order.
+    The kernels, coefficients and constants are the form's; only the integration entities
+    change, filtered in their original order.
 
     Args:
-        form: A compiled form.
+        assembler: The form's assembler over the whole mesh.
         active: (n_cells_local,) bool per local cell.
     """
-    cpp, ufcx = form._cpp_object, form.ufcx_form
-    offsets = [ufcx.form_integral_offsets[i] for i in range(len(IntegralType) + 1)]
-    subdomains = {}
-    for i in range(len(offsets) - 1):
-        kind = IntegralType(i)
-        ids = [ufcx.form_integral_ids[j] for j in range(offsets[i], offsets[i + 1])]
-        if ids:
-            subdomains[kind] = [(sid, _keep(kind, np.asarray(cpp.domains(kind, k)), active))
-                                for k, sid in enumerate(ids)]
-    module = form.module
-    new = type(cpp)([module.ffi.cast("uintptr_t", module.ffi.addressof(ufcx))],
-                    cpp.function_spaces, cpp.coefficients, cpp.constants, subdomains, [],
-                    cpp.mesh)
-    return fem.Form(new, ufcx, form.code, module)
+    return assembler.restricted([_keep(kind, ents, active)
+                                 for kind, _, ents in assembler.integrals])
 
 
 def _keep(kind: IntegralType, entities: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -83,16 +73,18 @@ class ActiveForms:
                  rings: int = RINGS) -> None:
         if rings < 2:
             raise ValueError("the active set needs at least 2 rings")
-        self.disc, self.reducer, self.full, self.rings = disc, reducer, list(forms), rings
-        self.forms: list[fem.Form] = list(forms)
+        self.disc, self.reducer, self.rings = disc, reducer, rings
+        self.full = [VectorAssembler(f) for f in forms]
+        #: the forms' assemblers on the active cells
+        self.forms: list[VectorAssembler] = list(self.full)
         self.inner: np.ndarray | None = None  # nodes within rings - 1 hops of the wet ones
         self.active_cells = disc.cell_nodes.shape[0]
         #: indices of the active owned cells (the cells the numba kernels visit)
         self.owned = np.arange(disc.n_owned_cells)
         self.rebuilds = 0
 
-    def update(self, q: np.ndarray) -> list[fem.Form]:
-        """Return the forms for the state ``q`` (n_nodes_local, 3) (collective)."""
+    def update(self, q: np.ndarray) -> list[VectorAssembler]:
+        """Return the forms' assemblers for the state ``q`` (n_nodes_local, 3) (collective)."""
         wet = np.any(q != 0.0, axis=1)
         inside = self.inner is not None and bool(np.all(self.inner[wet]))
         if self.disc.comm.allreduce(inside, op=MPI.LAND):
@@ -102,7 +94,7 @@ class ActiveForms:
             hops.append(self._grow(hops[-1]))
         self.inner = hops[-2] > 0.0
         active = hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0
-        self.forms = [restrict_form(f, active) for f in self.full]
+        self.forms = [restrict(a, active) for a in self.full]
         self.active_cells = int(active.sum())
         self.owned = np.flatnonzero(active[: self.disc.n_owned_cells])
         self.rebuilds += 1

@@ -21,6 +21,7 @@ import numpy as np
 from dolfinx import fem, la
 from mpi4py import MPI
 
+from fem_runout.assembly import VectorAssembler
 from fem_runout.mesh import Discretization, GhostReducer, facet_measures, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
@@ -106,8 +107,10 @@ class Transport:
         self._dofs0 = _as_slice(self._dofs0)
         self.reducer = GhostReducer(disc)
         #: the forms on the cells near the flow (same bits as the whole mesh), or None
-        self.active = ActiveForms(disc, self.reducer, [self.pred_form, *self.corr_form]) \
-            if active_set else None
+        forms = [self.pred_form, *self.corr_form]
+        self.active = ActiveForms(disc, self.reducer, forms) if active_set else None
+        #: the forms' assemblers over the whole mesh (numba calling the FFCx kernels)
+        self._assemblers = [VectorAssembler(f) for f in forms] if not active_set else []
         self.limiter = Limiter(disc, self.reducer, self.gn, self.kappa)
         self.outflow_volume = 0.0
         no = disc.n_owned_cells
@@ -222,8 +225,7 @@ class Transport:
             self.gk.x.array[self._dofs0] = self.gn[d.cell_nodes].mean(axis=1)
         q0 = self.state()
         # the low-order pass of this state (here or in stable_dt) updated the active set
-        forms = [self.pred_form, *self.corr_form] if self.active is None else \
-            self.active.forms
+        forms = self._assemblers if self.active is None else self.active.forms
         high = self._high_order(cell_eta, forms[0], forms[1:])
         low_rate = self._low_order_rates(h, hu, hv)
         q_low = q0 + dt * low_rate
@@ -239,13 +241,13 @@ class Transport:
         self.set_state(q_new)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _high_order(self, cell_eta: np.ndarray, pred_form: fem.Form,
-                    corr_forms: list[fem.Form]) -> np.ndarray:
+    def _high_order(self, cell_eta: np.ndarray, pred_form: VectorAssembler,
+                    corr_forms: list[VectorAssembler]) -> np.ndarray:
         """Predictor (DG0) then corrector element contributions A_H (owned cells, × dt)."""
         d = self.disc
         b = self.b_pred
         b.array[:] = 0.0
-        fem.assemble_vector(b.array, pred_form)
+        pred_form.assemble(b.array)
         Qk = self.Qk.x.array.reshape(-1, 3)
         Qk[self._dof0] = b.array.reshape(-1, 3)[self._dof0] / d.cell_area[:, None]
         self.Qk.x.scatter_forward()
@@ -261,7 +263,7 @@ class Transport:
         self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
         for vec, form in zip(self.b_corr, corr_forms, strict=True):
             vec.array[:] = 0.0
-            fem.assemble_vector(vec.array, form)
+            form.assemble(vec.array)
             vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
         b = self.b_corr[0]
         b.array[:] += self.b_corr[1].array  # cell + vertical facets, then horizontal facets
