@@ -18,7 +18,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cell_slots", "gather", "gather_total", "sources", "total"]
+__all__ = ["cell_slots", "gather", "gather_on", "gather_total", "gather_total_on", "sources",
+           "total", "total_on"]
 
 
 def cell_slots(xc: np.ndarray) -> np.ndarray:
@@ -78,3 +79,36 @@ def gather_total(src, flat, out):
                 j = src[i, s]
                 acc = acc + (flat[j, c] if j >= 0 else 0.0)
             out[i, c] = acc
+
+
+@numba.njit(cache=True)
+def gather_total_on(src, flat, nodes, out):
+    """:func:`gather_total` on the rows ``src[k]`` of ``nodes[k]``: ``out[nodes[k]]``."""
+    for k in range(nodes.shape[0]):
+        i = nodes[k]
+        for c in range(flat.shape[1]):
+            acc = 0.0
+            for s in range(4):
+                j = src[k, s]
+                acc = acc + (flat[j, c] if j >= 0 else 0.0)
+            out[i, c] = acc
+
+
+@numba.njit(cache=True)
+def gather_on(src, flat, nodes, buf):
+    """:func:`gather` on the rows ``src[k]`` of ``nodes[k]``: ``buf[nodes[k]]``."""
+    for k in range(nodes.shape[0]):
+        i = nodes[k]
+        for s in range(4):
+            j = src[k, s]
+            for c in range(flat.shape[1]):
+                buf[i, s, c] = flat[j, c] if j >= 0 else 0.0
+
+
+@numba.njit(cache=True)
+def total_on(buf, nodes, out):
+    """:func:`total` on ``nodes``."""
+    for k in range(nodes.shape[0]):
+        i = nodes[k]
+        for c in range(buf.shape[2]):
+            out[i, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]

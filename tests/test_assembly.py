@@ -18,9 +18,9 @@ from fem_runout.tg2.solver import build_tg2
 def _transport(comm):
     case = load_case("cases/inclined_dam_break.yaml",
                      [("domain.cells", [40, 6]), ("numerics.active_set", False)])
-    t = build_tg2(case, comm).transport
+    t = build_tg2(case, comm).transport.high
     rng = np.random.default_rng(17 + comm.rank)
-    for f in (t.h, t.hu, t.hv, t.ux, t.uy, t.eta_t, t.Qk, t.uk, t.etak, t.z):
+    for f in (t.h, t.hu, t.hv, *t.velocity, t.eta_t, t.Qk, t.uk, t.etak, t.z):
         f.x.array[:] = rng.random(f.x.array.size) - 0.3
     t.dt.value = 0.37
     return t
@@ -53,7 +53,7 @@ def check_subset(comm) -> None:
     d = t.disc
     cut = 10.0 * d.spacing[0] + d.extent[0]
     node_off = d.coords[:, 0] > cut
-    for f in (t.h, t.hu, t.hv, t.ux, t.uy):
+    for f in (t.h, t.hu, t.hv, *t.velocity):
         f.x.array[node_off] = 0.0
     xc = d.coords[d.cell_nodes, 0].mean(axis=1)
     for f in (t.Qk, t.uk, t.etak, t.eta_t):  # DG: each dof belongs to one cell

@@ -21,16 +21,12 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from dolfinx.fem import IntegralType
-from mpi4py import MPI
 
+from fem_runout.active import RINGS, ActiveSet
 from fem_runout.assembly import VectorAssembler
 from fem_runout.mesh import Discretization, GhostReducer
 
 __all__ = ["ActiveForms", "restrict"]
-
-#: Node hops around the wet nodes that the active set covers.
-RINGS = 4
-
 
 def restrict(assembler: VectorAssembler, active: np.ndarray) -> VectorAssembler:
     """Return ``assembler`` on the active cells: cell integrals, facets touching an active cell.
@@ -59,8 +55,8 @@ def _keep(kind: IntegralType, entities: np.ndarray, active: np.ndarray) -> np.nd
     return np.ascontiguousarray(out.ravel(), dtype=np.int32)
 
 
-class ActiveForms:
-    """Forms assembled on the cells near the flow only; rebuilt when the flow moves on.
+class ActiveForms(ActiveSet):
+    """The active set with the transport forms' assemblers restricted to it.
 
     Args:
         disc: The discretization.
@@ -71,39 +67,24 @@ class ActiveForms:
 
     def __init__(self, disc: Discretization, reducer: GhostReducer, forms: list[fem.Form],
                  rings: int = RINGS) -> None:
-        if rings < 2:
-            raise ValueError("the active set needs at least 2 rings")
-        self.disc, self.reducer, self.rings = disc, reducer, rings
+        super().__init__(disc, reducer, rings)
         self.full = [VectorAssembler(f) for f in forms]
         #: the forms' assemblers on the active cells
         self.forms: list[VectorAssembler] = list(self.full)
-        self.inner: np.ndarray | None = None  # nodes within rings - 1 hops of the wet ones
-        self.active_cells = disc.cell_nodes.shape[0]
-        #: indices of the active owned cells (the cells the numba kernels visit)
-        self.owned = np.arange(disc.n_owned_cells)
-        self.rebuilds = 0
+        #: the first form (the predictor) on the active local cells, ghosts included
+        self.predictor = self._ghosted(self.full[0])
 
-    def update(self, q: np.ndarray) -> list[VectorAssembler]:
-        """Return the forms' assemblers for the state ``q`` (n_nodes_local, 3) (collective)."""
-        wet = np.any(q != 0.0, axis=1)
-        inside = self.inner is not None and bool(np.all(self.inner[wet]))
-        if self.disc.comm.allreduce(inside, op=MPI.LAND):
-            return self.forms
-        hops = [wet.astype(np.float64)]
-        for _ in range(self.rings):
-            hops.append(self._grow(hops[-1]))
-        self.inner = hops[-2] > 0.0
-        active = hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0
-        self.forms = [restrict(a, active) for a in self.full]
-        self.active_cells = int(active.sum())
-        self.owned = np.flatnonzero(active[: self.disc.n_owned_cells])
-        self.rebuilds += 1
-        return self.forms
+    def _ghosted(self, predictor: VectorAssembler) -> VectorAssembler:
+        """Return the cell-integral form on every active local cell, owned and ghosts."""
+        kinds = [kind for kind, _, _ in predictor.integrals]
+        if kinds != [IntegralType.cell]:
+            raise ValueError("the predictor must have one cell integral")
+        return predictor.restricted([self.cells.astype(np.int32)])
 
-    def _grow(self, flag: np.ndarray) -> np.ndarray:
-        """One node hop: the max over the cells around each node, then over the ranks."""
-        cells = self.disc.cell_nodes
-        out = flag.copy()
-        np.maximum.at(out, cells, flag[cells].max(axis=1)[:, None])
-        self.reducer.reduce(out, "max")
-        return out
+    def update(self, q: np.ndarray) -> bool:
+        """Rebuild the set and the assemblers if the flow ``q`` nears the edge (collective)."""
+        if not super().update(q):
+            return False
+        self.forms = [restrict(a, self.mask) for a in self.full]
+        self.predictor = self._ghosted(self.full[0])
+        return True

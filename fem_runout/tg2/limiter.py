@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fem_runout.active import ActiveSet
 from fem_runout.mesh import Discretization, GhostReducer
 from fem_runout.tg2 import fct
 from fem_runout.tg2.low_order import bar_state_extrema, pair_coefficients
@@ -71,13 +72,31 @@ class Limiter:
         self.kappa = float(kappa)
         #: depth under which a layer is thin whatever its neighbours (1e-3 h_max by default)
         self.thin_depth = 1e3 * self.kappa
-        self.owned = disc.cell_nodes[: disc.n_owned_cells]
         self.beta_all = pair_coefficients(disc.C)  # owned and ghost cells: whole patches
-        n = self.owned.shape[0]
-        self._per_cell2, self._per_cell3 = np.empty((n, 4, 2)), np.empty((3, n, 4))
+        self._key: tuple[int, int] | None = None
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def _on(self, region: ActiveSet) -> dict[str, np.ndarray]:
+        """Return the active cells' node lists, pair coefficients and buffers (cached)."""
+        key = (id(region), region.rebuilds)
+        if key != self._key:
+            cn = self.disc.cell_nodes
+            n = region.owned.size
+            self._arrays = {
+                "owned": np.ascontiguousarray(cn[region.owned]),
+                "local": np.ascontiguousarray(cn[region.cells]),
+                "beta": np.ascontiguousarray(self.beta_all[region.cells]),
+                "per_cell2": np.empty((n, 4, 2)), "per_cell3": np.empty((3, n, 4)),
+            }
+            self._key = key
+        return self._arrays
+
+    def active_cells(self, region: ActiveSet) -> np.ndarray:
+        """(n, 4) nodes of the active local cells (owned and ghosts): whole patches."""
+        return self._on(region)["local"]
 
     def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
-                   u: np.ndarray) -> np.ndarray:
+                   u: np.ndarray, region: ActiveSet) -> np.ndarray:
         """Limited nodal corrections (n, 3) of (h, hu, hv) (collective).
 
         Synchronized (:func:`.fct.limit_pairs_sync`): each pair's fluxes of ``h``, ``hu``,
@@ -86,20 +105,24 @@ class Limiter:
         Args:
             q0: (n, 3) state at the start of the step.
             q_low: (n, 3) low-order state.
-            aec: (n_owned_cells, 4, 3) antidiffusive element contributions.
+            aec: (n_active_owned, 4, 3) antidiffusive element contributions of the active
+                owned cells (``region.owned``; the others contribute exact zeros).
             z: Nodal bed elevation.
             u: (2, n) desingularised nodal velocity of ``q0``.
+            region: The active set (every node of an active cell has its whole patch in it,
+                or a dry patch: the bounds are the whole mesh's).
         """
         d = self.disc
         m = d.lumped_mass
-        upper, lower = self.bounds(q0, q_low, z, u)
-        n = self.owned.shape[0]
+        arrays = self._on(region)
+        upper, lower = self.bounds(q0, q_low, z, u, region)
+        n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
         rplus, rminus = np.empty((3, q0.shape[0])), np.empty((3, q0.shape[0]))
         for c in range(3):
             fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
-            fct.flux_sums(flux[c], source[c], self._per_cell2)
-            sums = d.cell_sum(self._per_cell2)
+            fct.flux_sums(flux[c], source[c], arrays["per_cell2"])
+            sums = region.cell_sum(arrays["per_cell2"])
             qplus, qminus = m * (upper[:, c] - q_low[:, c]), m * (lower[:, c] - q_low[:, c])
             rplus[c], rminus[c] = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
             if c == 0:  # the depth's sign-free ratio, P floored: continuous where nothing flows
@@ -107,24 +130,26 @@ class Limiter:
                 soft = np.minimum(
                     np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),
                     np.minimum(1.0, np.minimum(qminus, 0.0) / np.minimum(sums[:, 1], -floor)))
-        cap = np.maximum(self.thin_cap(q_low[:, 0]), soft)
-        out = self._per_cell3
-        fct.limit_pairs_sync(self.owned, flux, source, rplus, rminus, np.hypot(u[0], u[1]),
-                             cap, out)
-        corr = np.empty_like(q0)
-        for c in range(3):
-            corr[:, c] = d.cell_sum(out[c])
-        return corr
+        cap = np.maximum(self.thin_cap(q_low[:, 0], region), soft)
+        out = arrays["per_cell3"]
+        fct.limit_pairs_sync(arrays["owned"], flux, source, rplus, rminus,
+                             np.hypot(u[0], u[1]), cap, out)
+        return region.cell_sum(np.ascontiguousarray(out.transpose(1, 2, 0)))
 
-    def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray,
-               u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Upper and lower bounds (n, 3), each containing the low-order state (collective)."""
+    def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
+               region: ActiveSet) -> tuple[np.ndarray, np.ndarray]:
+        """Upper and lower bounds (n, 3), each containing the low-order state (collective).
+
+        Over the active cells' patches: a node of no active cell gets ``q_low`` itself.
+        """
         nn = q0.shape[0]
         hi, lo = np.full((3, nn), -np.inf), np.full((3, nn), np.inf)
-        cells = self.disc.cell_nodes
+        arrays = self._on(region)
+        cells = arrays["local"]
         a, b = np.ascontiguousarray(q0.T), np.ascontiguousarray(q_low.T)
         fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
-        bar_state_extrema(cells, self.beta_all, q0[:, 0], u[0], u[1], z, self.g, hi[1:], lo[1:])
+        bar_state_extrema(cells, arrays["beta"], q0[:, 0], u[0], u[1], z, self.g, hi[1:],
+                          lo[1:])
         for c in range(3):
             self.reducer.reduce(hi[c], "max")
             self.reducer.reduce(lo[c], "min")
@@ -134,7 +159,7 @@ class Limiter:
         lo[0] = np.maximum(lo[0], 0.0)
         return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low)
 
-    def thin_cap(self, h_low: np.ndarray) -> np.ndarray:
+    def thin_cap(self, h_low: np.ndarray, region: ActiveSet) -> np.ndarray:
         """Thin-layer ramp ``θ_i = clip(min_patch h^L / (1e3 κ + THIN_RATIO max_patch h^L))``.
 
         Where θ < 1 the momentum fluxes are capped by ``max(θ, R̃_h)``, ``R̃_h`` the depth's
@@ -146,7 +171,7 @@ class Limiter:
         than 1e3 κ".
         """
         near, far = np.full(h_low.shape[0], np.inf), np.full(h_low.shape[0], -np.inf)
-        fct.patch_extrema(self.disc.cell_nodes, np.ascontiguousarray(h_low), far, near)
+        fct.patch_extrema(self._on(region)["local"], np.ascontiguousarray(h_low), far, near)
         self.reducer.reduce(near, "min")
         self.reducer.reduce(far, "max")
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)

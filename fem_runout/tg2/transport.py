@@ -16,25 +16,20 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
 
 from __future__ import annotations
 
-import basix.ufl
 import numpy as np
-from dolfinx import fem, la
+from dolfinx import fem
 from mpi4py import MPI
 
-from fem_runout.assembly import VectorAssembler
-from fem_runout.mesh import Discretization, GhostReducer, facet_measures, zero_wall_normal
+from fem_runout.mesh import Discretization, GhostReducer, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
 from fem_runout.tg2.active import ActiveForms
-from fem_runout.tg2.forms import corrector_form, predictor_form
+from fem_runout.tg2.high_order import HighOrder
 from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
-    cell_means,
     low_order_pass,
-    reconstructed_surface,
     velocity,
-    velocity_factor,
 )
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
@@ -75,53 +70,20 @@ class Transport:
         self.wet_depth = WET_DEPTH * self.kappa
         self._slope: np.ndarray | None = None
         self.fct_enabled = fct_enabled
-        msh, V = disc.mesh, disc.V
+        V = disc.V
         self.h, self.hu, self.hv, self.z = (fem.Function(V, name=n) for n in ("h", "hu", "hv", "z"))
         self.ux, self.uy = fem.Function(V), fem.Function(V)
-        W0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(3,)))
-        U0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(2,)))
-        S0 = fem.functionspace(msh, ("DG", 0))
-        Wd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1, shape=(3,)))
-        Sd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1))
-        self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
-        self.uk, self.etak = fem.Function(U0), fem.Function(S0)
-        self.dt = fem.Constant(msh, 0.0)
-        self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
-        g = fem.Constant(msh, self.g) if slope is None else self.gk
-        state, vel = (self.h, self.hu, self.hv), (self.ux, self.uy)
-        self.pred_form = predictor_form(state, vel, self.eta_t, W0, self.dt, g)
-        self.corr_form = corrector_form(
-            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, self.kappa), self.z,
-            facet_measures(disc), disc.spacing,
-        )
-        self.b_pred = fem.assemble_vector(self.pred_form)
-        self.b_corr = [fem.assemble_vector(f) for f in self.corr_form]
-        nc = disc.cell_nodes.shape[0]
-        self._dof0 = np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64)
-        if not np.array_equal(self._dof0, U0.dofmap.list[:nc, 0]):
-            raise RuntimeError("DG0 spaces with different cell numbering")
-        self._dofs0 = np.asarray(S0.dofmap.list[:nc, 0], dtype=np.int64)
-        self._dofd = _as_slice(np.asarray(Wd.dofmap.list[:nc], dtype=np.int64))
-        self._dofsd = _as_slice(np.asarray(Sd.dofmap.list[:nc], dtype=np.int64))
-        self._dof0 = _as_slice(self._dof0)
-        self._dofs0 = _as_slice(self._dofs0)
+        self.high = HighOrder(disc, (self.h, self.hu, self.hv), (self.ux, self.uy), self.z,
+                              self.g, self.kappa, slope is not None)
         self.reducer = GhostReducer(disc)
-        #: the forms on the cells near the flow (same bits as the whole mesh), or None
-        forms = [self.pred_form, *self.corr_form]
-        self.active = ActiveForms(disc, self.reducer, forms) if active_set else None
-        #: the forms' assemblers over the whole mesh (numba calling the FFCx kernels)
-        self._assemblers = [VectorAssembler(f) for f in forms] if not active_set else []
+        #: where the step works: the cells near the flow (or, without the active set, all)
+        self.active = ActiveForms(disc, self.reducer, self.high.forms())
+        self.active_set = active_set
         self.limiter = Limiter(disc, self.reducer, self.gn, self.kappa)
         self.outflow_volume = 0.0
-        no = disc.n_owned_cells
-        self._lo = np.zeros((no, 4, 3))
-        self._cap = np.zeros((no, 4))
-        self._owned = disc.cell_nodes[:no]
-        self._cellC = np.ascontiguousarray(disc.C[:no])
-        self._beta = self.limiter.beta_all[:no]  # owned cells come first
-        self._means, self._eta_mean = np.empty((nc, 3)), np.empty(nc)
-        self._cell_eta = np.empty((nc, 4))
-        self._fresh = False  # low-order rates of the current state are in self._lo
+        self._beta = self.limiter.beta_all
+        self._fresh = False  # low-order rates of the current state are cached
+        self._dt = 0.0  # the step being taken
         self._active_key, self._active_cache = -1, ()
 
     # -- state -----------------------------------------------------------------------------
@@ -144,7 +106,7 @@ class Transport:
         """
         d = self.disc
         self._low_order_pass()
-        cap = d.cell_sum(self._cap)
+        cap = self.active.cell_sum(self._active_arrays()[4])
         ux, uy = self.ux.x.array, self.uy.x.array
         for side in d.sides:
             if side.kind == "open":
@@ -179,30 +141,25 @@ class Transport:
         velocity(h, hu, hv, self.kappa, self.ux.x.array, self.uy.x.array)
         if self.slope is not None:
             self.gn[:] = self.slope.pressure_gravity(self.ux.x.array, self.uy.x.array)
-        self._cap[:] = 0.0
-        if self.active is None:
-            low_order_pass(self._owned, self._beta, self._cellC, h, hu, hv, z, self.ux.x.array,
-                           self.uy.x.array, self.gn, self.kappa, self._lo, self._cap)
-        else:  # dry cells give exact zeros: visit the active ones only (tg2/active.py)
+        if self.active_set:  # dry cells give exact zeros: visit the active ones only
             self.active.update(self.state())
-            cells, beta, cc, lo, cap = self._active_arrays()
-            cap[:] = 0.0
-            low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
-                           self.gn, self.kappa, lo, cap)
-            self._lo[:] = 0.0
-            self._lo[self.active.owned], self._cap[self.active.owned] = lo, cap
+        cells, beta, cc, lo, cap = self._active_arrays()
+        cap[:] = 0.0
+        low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
+                       self.gn, self.kappa, lo, cap)
         self._fresh = True
 
     def _active_arrays(self) -> tuple[np.ndarray, ...]:
-        """Return the active owned cells' nodes, pair and ``C`` coefficients and buffers.
+        """Return the active owned cells' arrays: nodes, pair and ``C`` coefficients, and rates.
 
-        Cached until the active set is rebuilt.
+        The last two are the low-order rates ``A_L`` and the capacities of the current state
+        (``lo``, ``cap``). Cached until the active set is rebuilt.
         """
         if self._active_key != self.active.rebuilds:
             idx = self.active.owned
-            self._active_cache = (np.ascontiguousarray(self._owned[idx]),
+            self._active_cache = (np.ascontiguousarray(self.disc.cell_nodes[idx]),
                                   np.ascontiguousarray(self._beta[idx]),
-                                  np.ascontiguousarray(self._cellC[idx]),
+                                  np.ascontiguousarray(self.disc.C[idx]),
                                   np.empty((idx.size, 4, 3)), np.empty((idx.size, 4)))
             self._active_key = self.active.rebuilds
         return self._active_cache
@@ -210,71 +167,31 @@ class Transport:
     def step(self, dt: float) -> None:
         """Advance (h, hu, hv) by ``dt``."""
         d = self.disc
-        self.dt.value = dt
-        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        self._dt = float(dt)
+        h, hu, hv = self.h.x.array, self.hu.x.array, self.hv.x.array
         if not self._fresh:
             self._low_order_pass()
-        eta_t = self.eta_t.x.array.reshape(-1)
-        cell_eta = self._cell_eta
-        reconstructed_surface(d.cell_nodes, h, z, self.kappa, cell_eta)
-        if isinstance(self._dofsd, slice):
-            eta_t.reshape(-1, 4)[self._dofsd] = cell_eta
-        else:
-            eta_t[self._dofsd] = cell_eta
-        if self.slope is not None:
-            self.gk.x.array[self._dofs0] = self.gn[d.cell_nodes].mean(axis=1)
-        q0 = self.state()
         # the low-order pass of this state (here or in stable_dt) updated the active set
-        forms = self._assemblers if self.active is None else self.active.forms
-        high = self._high_order(cell_eta, forms[0], forms[1:])
-        low_rate = self._low_order_rates(h, hu, hv)
-        q_low = q0 + dt * low_rate
-        aec = high - dt * self._lo
+        high = self.high.contributions(self.active, None if self.slope is None else self.gn, dt)
+        q0 = self.state()
+        q_low = q0 + dt * self._low_order_rates(h, hu, hv)
+        aec = high - dt * self._active_arrays()[3]
         if self.fct_enabled:
             corr = self.limiter.correction(q0, q_low, aec, self.z.x.array,
-                                           np.stack([self.ux.x.array, self.uy.x.array]))
+                                           np.stack([self.ux.x.array, self.uy.x.array]),
+                                           self.active)
         else:
-            corr = d.cell_sum(aec)
+            corr = self.active.cell_sum(aec)
         q_new = q_low + corr / d.lumped_mass[:, None]
         self._bound_speed(q_low, q_new)
         self._finalise(q_new)
         self.set_state(q_new)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _high_order(self, cell_eta: np.ndarray, pred_form: VectorAssembler,
-                    corr_forms: list[VectorAssembler]) -> np.ndarray:
-        """Predictor (DG0) then corrector element contributions A_H (owned cells, × dt)."""
-        d = self.disc
-        b = self.b_pred
-        b.array[:] = 0.0
-        pred_form.assemble(b.array)
-        Qk = self.Qk.x.array.reshape(-1, 3)
-        Qk[self._dof0] = b.array.reshape(-1, 3)[self._dof0] / d.cell_area[:, None]
-        self.Qk.x.scatter_forward()
-        delta = Qk[self._dof0].copy()  # a view when _dof0 is a slice
-        means, eta_mean = self._means, self._eta_mean
-        cell_means(d.cell_nodes, self.h.x.array, self.hu.x.array, self.hv.x.array, cell_eta,
-                   means, eta_mean)
-        vals = means + delta
-        Qk[self._dof0] = vals
-        hk = vals[:, 0]
-        self.etak.x.array[self._dofs0] = eta_mean + delta[:, 0]
-        factor = velocity_factor(hk, self.kappa)
-        self.uk.x.array.reshape(-1, 2)[self._dof0] = vals[:, 1:] * factor[:, None]
-        for vec, form in zip(self.b_corr, corr_forms, strict=True):
-            vec.array[:] = 0.0
-            form.assemble(vec.array)
-            vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
-        b = self.b_corr[0]
-        b.array[:] += self.b_corr[1].array  # cell + vertical facets, then horizontal facets
-        if isinstance(self._dofd, slice):
-            return b.array.reshape(-1, 4, 3)[: d.n_owned_cells]
-        return b.array.reshape(-1, 3)[self._dofd[: d.n_owned_cells]]
-
     def _low_order_rates(self, h, hu, hv) -> np.ndarray:
         """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i from self._lo."""
         d = self.disc
-        acc = d.cell_sum(self._lo)
+        acc = self.active.cell_sum(self._active_arrays()[3])
         acc += self._boundary_flux(h, hu, hv)
         return acc / d.lumped_mass[:, None]
 
@@ -304,23 +221,27 @@ class Transport:
         ux, uy = np.empty(q.shape[0]), np.empty(q.shape[0])
         velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
                  np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
-        bounds.bound_speed(self.disc.cell_nodes, self.reducer, q_low, q, self.z.x.array, self.g,
-                           np.hypot(ux, uy), self.gn)
+        bounds.bound_speed(self.limiter.active_cells(self.active), self.reducer, q_low, q,
+                           self.z.x.array, self.g, np.hypot(ux, uy), self.gn,
+                           self.active.nodes)
 
     def _finalise(self, q: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping."""
         d = self.disc
         zero_wall_normal(d.sides, q[:, 1], q[:, 2])
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
-        # so that the runner stops with a message
-        local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
+        # so that the runner stops with a message. Off the active nodes q is exactly 0.
+        nodes = self.active.nodes
+        qa = q[nodes]
+        local = float(np.max(np.abs(qa[:, 0]))) if qa.shape[0] else 0.0
         hmax = d.comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
-        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
-        q[tiny, 0] = 0.0
+        tiny = (qa[:, 0] < 0.0) & (qa[:, 0] > -1e-13 * max(hmax, 1e-300))
+        qa[tiny, 0] = 0.0
         # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
-        thin = q[:, 0] < self.kappa
-        ht = np.maximum(q[thin, 0], 0.0)
-        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
+        thin = qa[:, 0] < self.kappa
+        ht = np.maximum(qa[thin, 0], 0.0)
+        qa[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
+        q[nodes] = qa
         out = 0.0
         h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
         for side in d.sides:
@@ -329,15 +250,4 @@ class Transport:
                 i = side.nodes[own]
                 un = np.maximum(ux[i] * side.normal[0] + uy[i] * side.normal[1], 0.0)
                 out += float(np.sum(side.weight[own] * h[i] * un))
-        self.outflow_volume += float(self.dt.value) * d.comm.allreduce(out)
-
-
-def _as_slice(dofs: np.ndarray) -> np.ndarray | slice:
-    """Return a slice when consecutive cells have consecutive dofs (a view, no copy).
-
-    For an (n, k) dof list the slice indexes an array reshaped to (-1, k); for (n,) a flat one.
-    """
-    flat = dofs.reshape(-1)
-    if np.array_equal(flat, np.arange(flat.size)):
-        return slice(0, dofs.shape[0])
-    return dofs
+        self.outflow_volume += self._dt * d.comm.allreduce(out)

@@ -1,0 +1,151 @@
+"""The active set: the cells and nodes near the flow, where a step does its work (issue 16).
+
+A debris flow or an avalanche wets a few percent of its DEM. The cells with a node within
+``rings`` node hops of a node where ``(h, hu, hv) ≠ 0`` are *active*; a scheme whose terms all
+carry a factor ``h`` or ``q`` and whose stencil is one cell wide gets exact zeros elsewhere, so
+working on the active cells gives the same bits as working on the whole mesh. With a CFL
+number ≤ 1 a step wets at most one more ring: the set is rebuilt (collectively) only when a
+wet node leaves the inner ``rings - 1`` hops, about every ``rings - 1`` rings the flow
+advances.
+
+Hops are grown node-wise with a max over the cells around each node and a max over the ranks
+sharing it, so every rank agrees on the status of the cells and nodes it shares; the nodal
+sums over the active cells (:meth:`ActiveSet.cell_sum`) are the same bits as
+:meth:`fem_runout.mesh.Discretization.cell_sum` on any partition.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from dolfinx import la
+from dolfinx.la import InsertMode
+from mpi4py import MPI
+
+from fem_runout import cellsum
+from fem_runout.mesh import Discretization, GhostReducer
+
+__all__ = ["RINGS", "ActiveSet"]
+
+#: Node hops around the wet nodes that the active set covers.
+RINGS = 4
+
+
+@numba.njit(cache=True)
+def _grow(cells, flag, out):
+    """``out[i] = max(out[i], max over the cells around i of flag at their nodes)``."""
+    for k in range(cells.shape[0]):
+        m = max(max(flag[cells[k, 0]], flag[cells[k, 1]]), max(flag[cells[k, 2]],
+                                                               flag[cells[k, 3]]))
+        for a in range(4):
+            i = cells[k, a]
+            out[i] = max(out[i], m)
+
+
+class ActiveSet:
+    """The cells and nodes within ``rings`` node hops of the flow.
+
+    Attributes:
+        mask: (n_cells_local,) bool, the active local cells (owned and ghosts).
+        cells: Indices of the active local cells (owned first).
+        owned: Indices of the active owned cells.
+        wide: Indices of the local cells with a node in :attr:`nodes` (the active cells and
+            their neighbours).
+        nodes: Local nodes within ``rings + 1`` hops: every node of an active cell.
+        rebuilds: Number of rebuilds so far (a version number for caches).
+
+    Args:
+        disc: The discretization.
+        reducer: Max/min over the ranks sharing a node.
+        rings: Node hops covered around the wet nodes (>= 2).
+    """
+
+    def __init__(self, disc: Discretization, reducer: GhostReducer, rings: int = RINGS) -> None:
+        if rings < 2:
+            raise ValueError("the active set needs at least 2 rings")
+        self.disc, self.reducer, self.rings = disc, reducer, rings
+        self.inner: np.ndarray | None = None  # nodes within rings - 1 hops of the wet ones
+        n_cells, n_nodes = disc.cell_nodes.shape[0], disc.coords.shape[0]
+        self.mask = np.ones(n_cells, dtype=bool)
+        self.cells = np.arange(n_cells)
+        self.owned = np.arange(disc.n_owned_cells)
+        self.wide = np.arange(n_cells)
+        self.nodes = np.arange(n_nodes)
+        self.rebuilds = 0
+        self._sums: dict[int, tuple[np.ndarray, la.Vector | None]] = {}
+
+    @property
+    def active_cells(self) -> int:
+        """Number of active local cells."""
+        return int(self.cells.size)
+
+    def update(self, q: np.ndarray) -> bool:
+        """Rebuild the set if the flow ``q`` (n_nodes_local, 3) nears its edge (collective).
+
+        Returns:
+            True when the set was rebuilt.
+        """
+        wet = np.any(q != 0.0, axis=1)
+        inside = self.inner is not None and bool(np.all(self.inner[wet]))
+        if self.disc.comm.allreduce(inside, op=MPI.LAND):
+            return False
+        hops = [wet.astype(np.float64)]
+        for _ in range(self.rings + 1):
+            hops.append(self._grow(hops[-1]))
+        self.inner = hops[-3] > 0.0
+        self.mask = hops[-2][self.disc.cell_nodes].max(axis=1) > 0.0
+        self.cells = np.flatnonzero(self.mask)
+        self.owned = self.cells[self.cells < self.disc.n_owned_cells]
+        self.nodes = np.flatnonzero(hops[-1] > 0.0)
+        self.wide = np.flatnonzero(hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0)
+        self._sums = {}
+        self.rebuilds += 1
+        return True
+
+    def _grow(self, flag: np.ndarray) -> np.ndarray:
+        """One node hop: the max over the cells around each node, then over the ranks."""
+        out = flag.copy()
+        _grow(self.disc.cell_nodes, flag, out)
+        self.reducer.reduce(out, "max")
+        return out
+
+    def cell_sum(self, contrib: np.ndarray) -> np.ndarray:
+        """``Σ_K contrib[K, a]`` per node over the active owned cells.
+
+        The same bits as :meth:`fem_runout.mesh.Discretization.cell_sum` of the whole mesh with
+        zeros on the other cells, on any partition: the same slots summed in the same order.
+
+        Args:
+            contrib: (n_active_owned, 4) or (n_active_owned, 4, bs), rows in :attr:`owned`'s
+                order.
+
+        Returns:
+            (n_nodes_local,) or (n_nodes_local, bs), owned and ghost entries filled.
+        """
+        d = self.disc
+        bs = 1 if contrib.ndim == 2 else contrib.shape[2]
+        nn = d.coords.shape[0]
+        src, vec = self._sum_data(bs)
+        flat = np.ascontiguousarray(contrib.reshape(-1, bs))
+        out = np.zeros((nn, bs))
+        if vec is None:
+            cellsum.gather_total_on(src, flat, self.nodes, out)
+        else:
+            # the buffer is zero off the nodes (fresh at each rebuild, and every rank
+            # agrees on the nodes), so the exchange adds exact zeros there
+            buf = vec.array.reshape(nn, 4, bs)
+            cellsum.gather_on(src, flat, self.nodes, buf)
+            vec.scatter_reverse(InsertMode.add)  # each slot has one non-zero: exact
+            vec.scatter_forward()
+            cellsum.total_on(buf, self.nodes, out)
+        return out[:, 0] if contrib.ndim == 2 else out
+
+    def _sum_data(self, bs: int) -> tuple[np.ndarray, la.Vector | None]:
+        """Slot sources of the nodes and (in parallel) a zeroed exchange buffer, per rebuild."""
+        if bs not in self._sums:
+            d = self.disc
+            idx = self.owned
+            src = cellsum.sources(d.cell_nodes[idx], d.slot[idx], d.coords.shape[0])
+            vec = None if d.comm.size == 1 else la.vector(d.V.dofmap.index_map, 4 * bs)
+            self._sums[bs] = (np.ascontiguousarray(src[self.nodes]), vec)
+        return self._sums[bs]

@@ -1,0 +1,139 @@
+"""TG2-PC's high-order element contributions on the active set (seed eqs. 9–12).
+
+The predictor (DG0) and the corrector (discontinuous Q1) of :mod:`.forms`, assembled by the
+numba :class:`~fem_runout.assembly.VectorAssembler` on the active cells only
+(:class:`~fem_runout.tg2.active.ActiveForms`). Per step the work covers the *wide* cells (the
+active ones and their neighbours, whose DG0 states the corrector's edge terms read):
+
+1. the per-cell free surface η̃ (:func:`.low_order.reconstructed_surface`);
+2. the predictor on the active local cells, ghosts included (the same kernel on the same
+   data as on the owning rank, so no exchange is needed), giving ``Q_K^{n+1/2}``;
+3. the corrector on the active cells and the facets touching them, summed across ranks.
+
+Vectors are zeroed whole at every rebuild of the active set and on the wide cells' dofs per
+step; nothing else writes to them, so every entry off the wide cells stays zero.
+"""
+
+from __future__ import annotations
+
+import basix.ufl
+import numpy as np
+from dolfinx import fem, la
+
+from fem_runout.mesh import Discretization, facet_measures
+from fem_runout.tg2.active import ActiveForms
+from fem_runout.tg2.forms import corrector_form, predictor_form
+from fem_runout.tg2.low_order import cell_means, reconstructed_surface, velocity_factor
+
+__all__ = ["HighOrder"]
+
+
+class HighOrder:
+    """The DG fields, forms and vectors of the predictor and corrector.
+
+    Args:
+        disc: The discretization.
+        state: Q1 functions (h, hu, hv).
+        velocity: Q1 nodal velocity (ux, uy).
+        z: Q1 bed elevation.
+        gravity: g [m/s²].
+        kappa: Thin depth κ (velocity desingularisation, wet weight of the edge terms).
+        slope: True for the slope form (per-cell ``G`` instead of the constant ``g``).
+    """
+
+    def __init__(self, disc: Discretization, state: tuple[fem.Function, ...],
+                 velocity: tuple[fem.Function, fem.Function], z: fem.Function,
+                 gravity: float, kappa: float, slope: bool) -> None:
+        self.disc, self.kappa = disc, kappa
+        self.h, self.hu, self.hv = state
+        self.velocity, self.z = velocity, z
+        msh = disc.mesh
+        W0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(3,)))
+        U0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(2,)))
+        S0 = fem.functionspace(msh, ("DG", 0))
+        Wd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1, shape=(3,)))
+        Sd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1))
+        self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
+        self.uk, self.etak = fem.Function(U0), fem.Function(S0)
+        self.dt = fem.Constant(msh, 0.0)
+        self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
+        g = self.gk if slope else fem.Constant(msh, float(gravity))
+        self.pred_form = predictor_form(state, velocity, self.eta_t, W0, self.dt, g)
+        self.corr_form = corrector_form(
+            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, kappa), z,
+            facet_measures(disc), disc.spacing,
+        )
+        self.b_pred = la.vector(W0.dofmap.index_map, 3)
+        self.b_corr = [la.vector(Wd.dofmap.index_map, 3) for _ in self.corr_form]
+        nc = disc.cell_nodes.shape[0]
+        self._dofs = {
+            "dof0": np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64),
+            "dofs0": np.asarray(S0.dofmap.list[:nc, 0], dtype=np.int64),
+            "dofd": np.asarray(Wd.dofmap.list[:nc], dtype=np.int64),
+            "dofsd": np.asarray(Sd.dofmap.list[:nc], dtype=np.int64),
+        }
+        if not np.array_equal(self._dofs["dof0"], U0.dofmap.list[:nc, 0]):
+            raise RuntimeError("DG0 spaces with different cell numbering")
+        self._key = -1
+        self._on: dict[str, np.ndarray] = {}
+
+    def forms(self) -> list[fem.Form]:
+        """Return the predictor and corrector forms (for :class:`ActiveForms`)."""
+        return [self.pred_form, *self.corr_form]
+
+    def contributions(self, active: ActiveForms, gn: np.ndarray | None, dt: float) -> np.ndarray:
+        """Return ``dt A_H[K, i]`` (n_active_owned, 4, 3) of the active owned cells (collective).
+
+        Args:
+            active: The active set with the forms' assemblers.
+            gn: Nodal ``G`` of the slope form, or None.
+            dt: Time step.
+        """
+        on = self._arrays(active)
+        self.dt.value = dt
+        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        cells = on["cells"]
+        cell_eta = on["cell_eta"]
+        reconstructed_surface(cells, h, z, self.kappa, cell_eta)
+        self.eta_t.x.array[on["dofsd"]] = cell_eta
+        if gn is not None:
+            self.gk.x.array[on["dofs0"]] = gn[cells].mean(axis=1)
+        pred, corr = active.predictor, active.forms[1:]
+        b = self.b_pred.array.reshape(-1, 3)
+        b[on["dof0"]] = 0.0
+        pred.assemble(self.b_pred.array)
+        delta = b[on["dof0"]] / on["area"][:, None]
+        means, eta_mean = on["means"], on["eta_mean"]
+        cell_means(cells, h, hu, hv, cell_eta, means, eta_mean)
+        vals = means + delta
+        self.Qk.x.array.reshape(-1, 3)[on["dof0"]] = vals
+        self.etak.x.array[on["dofs0"]] = eta_mean + delta[:, 0]
+        factor = velocity_factor(vals[:, 0], self.kappa)
+        self.uk.x.array.reshape(-1, 2)[on["dof0"]] = vals[:, 1:] * factor[:, None]
+        for vec, form in zip(self.b_corr, corr, strict=True):
+            vec.array.reshape(-1, 3)[on["dofd"]] = 0.0
+            form.assemble(vec.array)
+            vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
+        own = on["dofd_owned"]
+        # cell + vertical facets, then horizontal facets
+        return self.b_corr[0].array.reshape(-1, 3)[own] + self.b_corr[1].array.reshape(-1, 3)[own]
+
+    def _arrays(self, active: ActiveForms) -> dict[str, np.ndarray]:
+        """Return the wide cells' nodes, dofs and buffers; vectors zeroed at each rebuild."""
+        if self._key == active.rebuilds:
+            return self._on
+        d, w = self.disc, active.wide
+        dofs = self._dofs
+        self._on = {
+            "cells": np.ascontiguousarray(d.cell_nodes[w]),
+            "dof0": dofs["dof0"][w], "dofs0": dofs["dofs0"][w],
+            "dofd": dofs["dofd"][w], "dofsd": dofs["dofsd"][w],
+            "dofd_owned": dofs["dofd"][active.owned],
+            "area": d.cell_area[w],
+            "cell_eta": np.empty((w.size, 4)), "means": np.empty((w.size, 3)),
+            "eta_mean": np.empty(w.size),
+        }
+        for vec in (self.b_pred, *self.b_corr):
+            vec.array[:] = 0.0
+        self._key = active.rebuilds
+        return self._on
