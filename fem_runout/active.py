@@ -23,7 +23,7 @@ from dolfinx.la import InsertMode
 from mpi4py import MPI
 
 from fem_runout import cellsum
-from fem_runout.mesh import Discretization, GhostReducer
+from fem_runout.mesh import Discretization, GhostReducer, Side
 
 __all__ = ["RINGS", "ActiveSet"]
 
@@ -63,7 +63,7 @@ class ActiveSet:
     def __init__(self, disc: Discretization, reducer: GhostReducer, rings: int = RINGS) -> None:
         if rings < 2:
             raise ValueError("the active set needs at least 2 rings")
-        self.disc, self.reducer, self.rings = disc, reducer, rings
+        self.disc, self._reducer, self.rings = disc, reducer, rings
         self.inner: np.ndarray | None = None  # nodes within rings - 1 hops of the wet ones
         n_cells, n_nodes = disc.cell_nodes.shape[0], disc.coords.shape[0]
         self.mask = np.ones(n_cells, dtype=bool)
@@ -72,7 +72,7 @@ class ActiveSet:
         self.wide = np.arange(n_cells)
         self.nodes = np.arange(n_nodes)
         self.rebuilds = 0
-        self._sums: dict[int, tuple[np.ndarray, la.Vector | None]] = {}
+        self._cache: dict[object, object] = {}
 
     @property
     def active_cells(self) -> int:
@@ -98,7 +98,7 @@ class ActiveSet:
         self.owned = self.cells[self.cells < self.disc.n_owned_cells]
         self.nodes = np.flatnonzero(hops[-1] > 0.0)
         self.wide = np.flatnonzero(hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0)
-        self._sums = {}
+        self._cache = {}
         self.rebuilds += 1
         return True
 
@@ -106,11 +106,54 @@ class ActiveSet:
         """One node hop: the max over the cells around each node, then over the ranks."""
         out = flag.copy()
         _grow(self.disc.cell_nodes, flag, out)
-        self.reducer.reduce(out, "max")
+        self._reducer.reduce(out, "max")
         return out
 
+    # -- arrays on the nodes of the set ("compact": row k is local node nodes[k]) ----------
+    def _cached(self, key: object, make):
+        """Return ``make()``, computed once per rebuild."""
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    @property
+    def inverse(self) -> np.ndarray:
+        """(n_nodes_local,) row of each local node in the compact arrays, -1 off the set."""
+        def make():
+            inv = np.full(self.disc.coords.shape[0], -1, dtype=np.int64)
+            inv[self.nodes] = np.arange(self.nodes.size)
+            return inv
+        return self._cached("inverse", make)
+
+    def compact_cells(self, which: str) -> np.ndarray:
+        """(n, 4) compact node rows of the ``"owned"`` or ``"cells"`` (local) active cells."""
+        return self._cached(("cells", which), lambda: np.ascontiguousarray(
+            self.inverse[self.disc.cell_nodes[getattr(self, which)]]))
+
+    @property
+    def reducer(self) -> GhostReducer:
+        """Max/min over the ranks of compact arrays."""
+        return self._cached("reducer", lambda: self._reducer.on(self.nodes))
+
+    @property
+    def n_owned_nodes(self) -> int:
+        """Number of owned nodes among :attr:`nodes` (they come first)."""
+        return self._cached("owned_nodes", lambda: int(np.searchsorted(
+            self.nodes, self.disc.n_owned_nodes)))
+
+    def sides(self) -> list[Side]:
+        """Return the boundary sides with compact node rows (nodes off the set left out)."""
+        def make():
+            out = []
+            for side in self.disc.sides:
+                pos = self.inverse[side.nodes]
+                ok = pos >= 0
+                out.append(Side(side.name, side.kind, side.normal, pos[ok], side.weight[ok]))
+            return out
+        return self._cached("sides", make)
+
     def cell_sum(self, contrib: np.ndarray) -> np.ndarray:
-        """``Σ_K contrib[K, a]`` per node over the active owned cells.
+        """``Σ_K contrib[K, a]`` per node of the set over the active owned cells (compact).
 
         The same bits as :meth:`fem_runout.mesh.Discretization.cell_sum` of the whole mesh with
         zeros on the other cells, on any partition: the same slots summed in the same order.
@@ -120,20 +163,20 @@ class ActiveSet:
                 order.
 
         Returns:
-            (n_nodes_local,) or (n_nodes_local, bs), owned and ghost entries filled.
+            (n_set_nodes,) or (n_set_nodes, bs), row k for local node ``nodes[k]`` (owned and
+            ghosts).
         """
         d = self.disc
         bs = 1 if contrib.ndim == 2 else contrib.shape[2]
-        nn = d.coords.shape[0]
         src, vec = self._sum_data(bs)
         flat = np.ascontiguousarray(contrib.reshape(-1, bs))
-        out = np.zeros((nn, bs))
+        out = np.empty((self.nodes.size, bs))
         if vec is None:
-            cellsum.gather_total_on(src, flat, self.nodes, out)
+            cellsum.gather_total_on(src, flat, out)
         else:
             # the buffer is zero off the nodes (fresh at each rebuild, and every rank
             # agrees on the nodes), so the exchange adds exact zeros there
-            buf = vec.array.reshape(nn, 4, bs)
+            buf = vec.array.reshape(d.coords.shape[0], 4, bs)
             cellsum.gather_on(src, flat, self.nodes, buf)
             vec.scatter_reverse(InsertMode.add)  # each slot has one non-zero: exact
             vec.scatter_forward()
@@ -142,10 +185,10 @@ class ActiveSet:
 
     def _sum_data(self, bs: int) -> tuple[np.ndarray, la.Vector | None]:
         """Slot sources of the nodes and (in parallel) a zeroed exchange buffer, per rebuild."""
-        if bs not in self._sums:
+        def make():
             d = self.disc
             idx = self.owned
             src = cellsum.sources(d.cell_nodes[idx], d.slot[idx], d.coords.shape[0])
             vec = None if d.comm.size == 1 else la.vector(d.V.dofmap.index_map, 4 * bs)
-            self._sums[bs] = (np.ascontiguousarray(src[self.nodes]), vec)
-        return self._sums[bs]
+            return np.ascontiguousarray(src[self.nodes]), vec
+        return self._cached(("sum", bs), make)

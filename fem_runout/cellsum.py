@@ -82,16 +82,15 @@ def gather_total(src, flat, out):
 
 
 @numba.njit(cache=True)
-def gather_total_on(src, flat, nodes, out):
-    """:func:`gather_total` on the rows ``src[k]`` of ``nodes[k]``: ``out[nodes[k]]``."""
-    for k in range(nodes.shape[0]):
-        i = nodes[k]
+def gather_total_on(src, flat, out):
+    """:func:`gather_total` into compact rows: ``out[k]`` from the slots ``src[k]``."""
+    for k in range(src.shape[0]):
         for c in range(flat.shape[1]):
             acc = 0.0
             for s in range(4):
                 j = src[k, s]
                 acc = acc + (flat[j, c] if j >= 0 else 0.0)
-            out[i, c] = acc
+            out[k, c] = acc
 
 
 @numba.njit(cache=True)
@@ -107,8 +106,8 @@ def gather_on(src, flat, nodes, buf):
 
 @numba.njit(cache=True)
 def total_on(buf, nodes, out):
-    """:func:`total` on ``nodes``."""
+    """:func:`total` of ``buf[nodes[k]]`` into compact rows ``out[k]``."""
     for k in range(nodes.shape[0]):
         i = nodes[k]
         for c in range(buf.shape[2]):
-            out[i, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]
+            out[k, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]

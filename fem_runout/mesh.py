@@ -228,7 +228,8 @@ class GhostReducer:
 
     dolfinx scatters only add or insert; the FCT bounds need the extremum over a node's whole
     patch, which straddles ranks. Ghost entries are sent to their owners, reduced there, and the
-    result is copied back to the ghosts.
+    result is sent back to the ghosts (exact: max, min and copies). :meth:`on` gives a reducer
+    of arrays that hold a subset of the local nodes (the active set's).
     """
 
     def __init__(self, disc: Discretization) -> None:
@@ -245,21 +246,47 @@ class GhostReducer:
         recv = np.empty(int(recv_counts.sum()), dtype=np.int64)
         self._exchange(ghosts[order].astype(np.int64), recv)
         self.recv_local = (recv - imap.local_range[0]).astype(np.int64)
+        #: positions of the ghosts and of the owned copies in the reduced arrays (-1: absent)
+        self.send_pos, self.recv_pos = self.send_local, self.recv_local
 
-    def _exchange(self, send: np.ndarray, recv: np.ndarray) -> None:
-        sd = np.concatenate([[0], np.cumsum(self.send_counts)[:-1]])
-        rd = np.concatenate([[0], np.cumsum(self.recv_counts)[:-1]])
-        self.comm.Alltoallv([send, (self.send_counts, sd)], [recv, (self.recv_counts, rd)])
+    def _exchange(self, send: np.ndarray, recv: np.ndarray, back: bool = False) -> None:
+        out, into = (self.recv_counts, self.send_counts) if back else \
+            (self.send_counts, self.recv_counts)
+        sd = np.concatenate([[0], np.cumsum(out)[:-1]])
+        rd = np.concatenate([[0], np.cumsum(into)[:-1]])
+        self.comm.Alltoallv([send, (out, sd)], [recv, (into, rd)])
 
     def reduce(self, values: np.ndarray, op: str) -> None:
         """Reduce ``values`` (local, owned then ghosts) in place with ``op`` = "max" or "min"."""
         if self.comm.size == 1:
             return
-        recv = np.empty(int(self.recv_counts.sum()))
-        self._exchange(np.ascontiguousarray(values[self.send_local]), recv)
+        ident = -np.inf if op == "max" else np.inf
+        sent = self.send_pos >= 0
+        send = np.full(self.send_pos.size, ident)
+        send[sent] = values[self.send_pos[sent]]
+        recv = np.empty(self.recv_pos.size)
+        self._exchange(send, recv)
+        here = self.recv_pos >= 0
         ufunc = np.maximum if op == "max" else np.minimum
-        ufunc.at(values, self.recv_local, recv)
-        self.disc.update_ghosts(values)
+        ufunc.at(values, self.recv_pos[here], recv[here])
+        back = np.zeros(self.recv_pos.size)
+        back[here] = values[self.recv_pos[here]]
+        ghosts = np.empty(self.send_pos.size)
+        self._exchange(back, ghosts, back=True)
+        values[self.send_pos[sent]] = ghosts[sent]
+
+    def on(self, nodes: np.ndarray) -> GhostReducer:
+        """Return a reducer of arrays ``a`` with ``a[k]`` the value at local node ``nodes[k]``.
+
+        Every rank must hold the same set of shared nodes (as the active set's nodes are);
+        nodes off the set take no part.
+        """
+        inv = np.full(self.disc.coords.shape[0], -1, dtype=np.int64)
+        inv[nodes] = np.arange(nodes.size)
+        new = object.__new__(GhostReducer)
+        new.__dict__.update(self.__dict__)
+        new.send_pos, new.recv_pos = inv[self.send_local], inv[self.recv_local]
+        return new
 
 
 def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure | None], ...]:

@@ -61,7 +61,7 @@ def deeper_patch_max(cells, speed, depth, z, g, gn, vmax):
 
 def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: np.ndarray,
                 z: np.ndarray, g: float, speed: np.ndarray,
-                gn: np.ndarray | None = None, nodes: np.ndarray | None = None) -> None:
+                gn: np.ndarray | None = None) -> None:
     """Bound each node's speed by what its patch can feed it (continuous in the data).
 
     The limiter bounds the momenta, not the velocity; in a draining layer (h → 0) the
@@ -93,21 +93,17 @@ def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: 
         g: Gravity [m/s²].
         speed: (n,) desingularised low-order speed.
         gn: (n,) nodal gravity of the wave speeds (default ``g`` everywhere).
-        nodes: The nodes to bound (default all): every node of ``cells``, the others dry.
     """
     depth = np.ascontiguousarray(q_low[:, 0])
     gn = np.full(q.shape[0], float(g)) if gn is None else gn
     smax = np.zeros(q.shape[0])
     deeper_patch_max(cells, np.ascontiguousarray(speed), depth, z, g, gn, smax)
     reducer.reduce(smax, "max")
-    idx = slice(None) if nodes is None else nodes
-    qa = q[idx]
-    norm = np.hypot(qa[:, 1], qa[:, 2])
-    wave = np.sqrt(gn[idx] * np.maximum(depth[idx], 0.0))
-    limit = np.maximum(qa[:, 0], 0.0) * (smax[idx] + SPEED_MARGIN * wave)
+    norm = np.hypot(q[:, 1], q[:, 2])
+    wave = np.sqrt(gn * np.maximum(depth, 0.0))
+    limit = np.maximum(q[:, 0], 0.0) * (smax + SPEED_MARGIN * wave)
     over = norm > limit
-    qa[over, 1:] *= (limit[over] / norm[over])[:, None]
-    q[idx] = qa
+    q[over, 1:] *= (limit[over] / norm[over])[:, None]
 
 
 def node_slopes(disc: Discretization, z: np.ndarray, reducer: GhostReducer) -> np.ndarray:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from fem_runout.active import ActiveSet
-from fem_runout.mesh import Discretization, GhostReducer
+from fem_runout.mesh import Discretization
 from fem_runout.tg2 import fct
 from fem_runout.tg2.low_order import bar_state_extrema, pair_coefficients
 
@@ -58,16 +58,13 @@ class Limiter:
 
     Args:
         disc: The discretization.
-        reducer: Max/min reduction over the ranks sharing a node.
         gravity: Nodal gravity of the pressure term (``g``, or ``G`` of the slope form), an
             array the transport updates in place.
         kappa: Thin-layer depth κ [m] (regularisation of the thin-layer ratio).
     """
 
-    def __init__(self, disc: Discretization, reducer: GhostReducer, gravity: np.ndarray,
-                 kappa: float) -> None:
+    def __init__(self, disc: Discretization, gravity: np.ndarray, kappa: float) -> None:
         self.disc = disc
-        self.reducer = reducer
         self.g = gravity
         self.kappa = float(kappa)
         #: depth under which a layer is thin whatever its neighbours (1e-3 h_max by default)
@@ -77,44 +74,44 @@ class Limiter:
         self._arrays: dict[str, np.ndarray] = {}
 
     def _on(self, region: ActiveSet) -> dict[str, np.ndarray]:
-        """Return the active cells' node lists, pair coefficients and buffers (cached)."""
+        """Return the active cells' compact node rows, pair coefficients, masses, buffers."""
         key = (id(region), region.rebuilds)
         if key != self._key:
-            cn = self.disc.cell_nodes
             n = region.owned.size
             self._arrays = {
-                "owned": np.ascontiguousarray(cn[region.owned]),
-                "local": np.ascontiguousarray(cn[region.cells]),
+                "owned": region.compact_cells("owned"),
+                "local": region.compact_cells("cells"),
                 "beta": np.ascontiguousarray(self.beta_all[region.cells]),
+                "mass": self.disc.lumped_mass[region.nodes],
                 "per_cell2": np.empty((n, 4, 2)), "per_cell3": np.empty((3, n, 4)),
             }
             self._key = key
         return self._arrays
 
-    def active_cells(self, region: ActiveSet) -> np.ndarray:
-        """(n, 4) nodes of the active local cells (owned and ghosts): whole patches."""
-        return self._on(region)["local"]
-
     def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
                    u: np.ndarray, region: ActiveSet) -> np.ndarray:
-        """Limited nodal corrections (n, 3) of (h, hu, hv) (collective).
+        """Limited corrections ``m_i (Q_i^{n+1} - Q_i^L)`` of (h, hu, hv) (collective).
 
         Synchronized (:func:`.fct.limit_pairs_sync`): each pair's fluxes of ``h``, ``hu``,
         ``hv`` share a factor weighted by their significance, on top of their own bounds.
+        Nodal arrays are compact: row ``k`` is the active set's node ``region.nodes[k]``
+        (every node of an active cell; the others are dry and get no correction).
 
         Args:
             q0: (n, 3) state at the start of the step.
             q_low: (n, 3) low-order state.
             aec: (n_active_owned, 4, 3) antidiffusive element contributions of the active
                 owned cells (``region.owned``; the others contribute exact zeros).
-            z: Nodal bed elevation.
+            z: (n,) bed elevation.
             u: (2, n) desingularised nodal velocity of ``q0``.
             region: The active set (every node of an active cell has its whole patch in it,
                 or a dry patch: the bounds are the whole mesh's).
+
+        Returns:
+            (n, 3) compact corrections.
         """
-        d = self.disc
-        m = d.lumped_mass
         arrays = self._on(region)
+        m = arrays["mass"]
         upper, lower = self.bounds(q0, q_low, z, u, region)
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
@@ -140,7 +137,7 @@ class Limiter:
                region: ActiveSet) -> tuple[np.ndarray, np.ndarray]:
         """Upper and lower bounds (n, 3), each containing the low-order state (collective).
 
-        Over the active cells' patches: a node of no active cell gets ``q_low`` itself.
+        Compact arrays, over the active cells' patches (whole patches, or dry ones).
         """
         nn = q0.shape[0]
         hi, lo = np.full((3, nn), -np.inf), np.full((3, nn), np.inf)
@@ -148,11 +145,12 @@ class Limiter:
         cells = arrays["local"]
         a, b = np.ascontiguousarray(q0.T), np.ascontiguousarray(q_low.T)
         fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
-        bar_state_extrema(cells, arrays["beta"], q0[:, 0], u[0], u[1], z, self.g, hi[1:],
-                          lo[1:])
+        bar_state_extrema(cells, arrays["beta"], a[0], u[0], u[1], z,
+                          self.g[region.nodes], hi[1:], lo[1:])
+        reducer = region.reducer
         for c in range(3):
-            self.reducer.reduce(hi[c], "max")
-            self.reducer.reduce(lo[c], "min")
+            reducer.reduce(hi[c], "max")
+            reducer.reduce(lo[c], "min")
         slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
         hi[1:] += slack
         lo[1:] -= slack
@@ -168,10 +166,10 @@ class Limiter:
         3 m/s in a Coulomb pit; with an absolute threshold alone (``h < 1e3 κ``) a 4 mm
         layer on rough terrain reached 22 m/s (free-fall bound 21 m/s; 15 m/s with the
         relative ramp). The ramp replaces the former switch "a node of the cell is thinner
-        than 1e3 κ".
+        than 1e3 κ". Compact arrays (:meth:`correction`).
         """
         near, far = np.full(h_low.shape[0], np.inf), np.full(h_low.shape[0], -np.inf)
         fct.patch_extrema(self._on(region)["local"], np.ascontiguousarray(h_low), far, near)
-        self.reducer.reduce(near, "min")
-        self.reducer.reduce(far, "max")
+        region.reducer.reduce(near, "min")
+        region.reducer.reduce(far, "max")
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)

@@ -79,7 +79,7 @@ class Transport:
         #: where the step works: the cells near the flow (or, without the active set, all)
         self.active = ActiveForms(disc, self.reducer, self.high.forms())
         self.active_set = active_set
-        self.limiter = Limiter(disc, self.reducer, self.gn, self.kappa)
+        self.limiter = Limiter(disc, self.gn, self.kappa)
         self.outflow_volume = 0.0
         self._beta = self.limiter.beta_all
         self._fresh = False  # low-order rates of the current state are cached
@@ -104,16 +104,17 @@ class Transport:
         eigenvalues ``|u·n| + sqrt(g h)`` of the full system in ``d_ij``. The low-order rates of
         the same pass are kept for the next :meth:`step`.
         """
-        d = self.disc
+        d, a = self.disc, self.active
         self._low_order_pass()
-        cap = self.active.cell_sum(self._active_arrays()[4])
-        ux, uy = self.ux.x.array, self.uy.x.array
-        for side in d.sides:
+        cap = a.cell_sum(self._active_arrays()[4])
+        nodes = a.nodes
+        for side in a.sides():
             if side.kind == "open":
-                un = ux[side.nodes] * side.normal[0] + uy[side.nodes] * side.normal[1]
+                i = nodes[side.nodes]
+                un = self.ux.x.array[i] * side.normal[0] + self.uy.x.array[i] * side.normal[1]
                 cap[side.nodes] += side.weight * np.maximum(un, 0.0)
-        own = slice(0, d.n_owned_nodes)
-        c, m = cap[own], d.lumped_mass[own]
+        own = slice(0, a.n_owned_nodes)
+        c, m = cap[own], self._active_arrays()[5][own]
         ratio = m[c > 0.0] / c[c > 0.0]
         local = float(ratio.min()) if ratio.size else np.inf
         return d.comm.allreduce(local, op=MPI.MIN)
@@ -143,7 +144,7 @@ class Transport:
             self.gn[:] = self.slope.pressure_gravity(self.ux.x.array, self.uy.x.array)
         if self.active_set:  # dry cells give exact zeros: visit the active ones only
             self.active.update(self.state())
-        cells, beta, cc, lo, cap = self._active_arrays()
+        cells, beta, cc, lo, cap = self._active_arrays()[:5]
         cap[:] = 0.0
         low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
                        self.gn, self.kappa, lo, cap)
@@ -152,96 +153,101 @@ class Transport:
     def _active_arrays(self) -> tuple[np.ndarray, ...]:
         """Return the active owned cells' arrays: nodes, pair and ``C`` coefficients, and rates.
 
-        The last two are the low-order rates ``A_L`` and the capacities of the current state
-        (``lo``, ``cap``). Cached until the active set is rebuilt.
+        Then the low-order rates ``A_L`` and the capacities of the current state (``lo``,
+        ``cap``), and the compact lumped mass and bed of the set's nodes. Cached until the
+        active set is rebuilt.
         """
         if self._active_key != self.active.rebuilds:
             idx = self.active.owned
+            nodes = self.active.nodes
             self._active_cache = (np.ascontiguousarray(self.disc.cell_nodes[idx]),
                                   np.ascontiguousarray(self._beta[idx]),
                                   np.ascontiguousarray(self.disc.C[idx]),
-                                  np.empty((idx.size, 4, 3)), np.empty((idx.size, 4)))
+                                  np.empty((idx.size, 4, 3)), np.empty((idx.size, 4)),
+                                  self.disc.lumped_mass[nodes], self.z.x.array[nodes])
             self._active_key = self.active.rebuilds
         return self._active_cache
 
     def step(self, dt: float) -> None:
-        """Advance (h, hu, hv) by ``dt``."""
-        d = self.disc
+        """Advance (h, hu, hv) by ``dt`` on the active set (compact arrays; dry elsewhere)."""
         self._dt = float(dt)
-        h, hu, hv = self.h.x.array, self.hu.x.array, self.hv.x.array
         if not self._fresh:
             self._low_order_pass()
         # the low-order pass of this state (here or in stable_dt) updated the active set
-        high = self.high.contributions(self.active, None if self.slope is None else self.gn, dt)
-        q0 = self.state()
-        q_low = q0 + dt * self._low_order_rates(h, hu, hv)
-        aec = high - dt * self._active_arrays()[3]
+        a = self.active
+        high = self.high.contributions(a, None if self.slope is None else self.gn, dt)
+        arrays = self._active_arrays()
+        m, z = arrays[5], arrays[6]
+        nodes = a.nodes
+        q0 = np.stack([self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes]],
+                      axis=1)
+        u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
+        q_low = q0 + dt * self._low_order_rates(q0, u, m)
+        aec = high - dt * arrays[3]
         if self.fct_enabled:
-            corr = self.limiter.correction(q0, q_low, aec, self.z.x.array,
-                                           np.stack([self.ux.x.array, self.uy.x.array]),
-                                           self.active)
+            corr = self.limiter.correction(q0, q_low, aec, z, u, a)
         else:
-            corr = self.active.cell_sum(aec)
-        q_new = q_low + corr / d.lumped_mass[:, None]
-        self._bound_speed(q_low, q_new)
+            corr = a.cell_sum(aec)
+        q_new = q_low + corr / m[:, None]
+        self._bound_speed(q_low, q_new, z)
         self._finalise(q_new)
-        self.set_state(q_new)
+        self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes] = q_new.T
+        self._fresh = False
 
     # -- pieces ------------------------------------------------------------------------------
-    def _low_order_rates(self, h, hu, hv) -> np.ndarray:
-        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i from self._lo."""
-        d = self.disc
+    def _low_order_rates(self, q: np.ndarray, u: np.ndarray, m: np.ndarray) -> np.ndarray:
+        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i (compact arrays)."""
         acc = self.active.cell_sum(self._active_arrays()[3])
-        acc += self._boundary_flux(h, hu, hv)
-        return acc / d.lumped_mass[:, None]
+        acc += self._boundary_flux(q, u)
+        return acc / m[:, None]
 
-    def _boundary_flux(self, h, hu, hv) -> np.ndarray:
+    def _boundary_flux(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Open sides: outflow ``-w_i F(U_i)·n⁺``; nothing enters; walls take nothing through.
 
         Material leaves through an open side with the node's own state (non-reflecting for
         outgoing flow). Nothing enters: with the zero-gradient state an inflowing node gains
         mass and momentum in proportion to ``q |u·n|``, a feedback that blew up at the open
         sides of the inclined dam break, and a run-out domain has nothing outside to bring in.
+        Compact arrays (the set's nodes).
         """
-        flux = np.zeros((h.shape[0], 3))
-        ux, uy = self.ux.x.array, self.uy.x.array
-        for side in self.disc.sides:
+        flux = np.zeros_like(q)
+        for side in self.active.sides():
             if side.kind != "open":
                 continue
             i = side.nodes
-            un = np.maximum(ux[i] * side.normal[0] + uy[i] * side.normal[1], 0.0)
+            un = np.maximum(u[0, i] * side.normal[0] + u[1, i] * side.normal[1], 0.0)
             w = side.weight
-            flux[i, 0] -= w * h[i] * un
-            flux[i, 1] -= w * hu[i] * un
-            flux[i, 2] -= w * hv[i] * un
+            flux[i, 0] -= w * q[i, 0] * un
+            flux[i, 1] -= w * q[i, 1] * un
+            flux[i, 2] -= w * q[i, 2] * un
         return flux
 
-    def _bound_speed(self, q_low: np.ndarray, q: np.ndarray) -> None:
+    def _bound_speed(self, q_low: np.ndarray, q: np.ndarray, z: np.ndarray) -> None:
         """Scale back momenta above the patch speed bound (:func:`.bounds.bound_speed`)."""
         ux, uy = np.empty(q.shape[0]), np.empty(q.shape[0])
         velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
                  np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
-        bounds.bound_speed(self.limiter.active_cells(self.active), self.reducer, q_low, q,
-                           self.z.x.array, self.g, np.hypot(ux, uy), self.gn,
-                           self.active.nodes)
+        a = self.active
+        bounds.bound_speed(a.compact_cells("cells"), a.reducer, q_low, q, z, self.g,
+                           np.hypot(ux, uy), self.gn[a.nodes])
 
     def _finalise(self, q: np.ndarray) -> None:
-        """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping."""
+        """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
+
+        ``q`` holds the active set's nodes (compact); the others are exactly dry.
+        """
         d = self.disc
-        zero_wall_normal(d.sides, q[:, 1], q[:, 2])
+        zero_wall_normal(self.active.sides(), q[:, 1], q[:, 2])
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
-        # so that the runner stops with a message. Off the active nodes q is exactly 0.
-        nodes = self.active.nodes
-        qa = q[nodes]
-        local = float(np.max(np.abs(qa[:, 0]))) if qa.shape[0] else 0.0
+        # so that the runner stops with a message
+        local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
         hmax = d.comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
-        tiny = (qa[:, 0] < 0.0) & (qa[:, 0] > -1e-13 * max(hmax, 1e-300))
-        qa[tiny, 0] = 0.0
+        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
+        q[tiny, 0] = 0.0
         # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
-        thin = qa[:, 0] < self.kappa
-        ht = np.maximum(qa[thin, 0], 0.0)
-        qa[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
-        q[nodes] = qa
+        thin = q[:, 0] < self.kappa
+        ht = np.maximum(q[thin, 0], 0.0)
+        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
         out = 0.0
         h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
         for side in d.sides:
