@@ -49,9 +49,9 @@ class ActiveSet:
         mask: (n_cells_local,) bool, the active local cells (owned and ghosts).
         cells: Indices of the active local cells (owned first).
         owned: Indices of the active owned cells.
-        wide: Indices of the local cells with a node in :attr:`nodes` (the active cells and
-            their neighbours).
-        nodes: Local nodes within ``rings + 1`` hops: every node of an active cell.
+        wide: Indices of the local cells with a node within ``rings + 1`` hops (the active
+            cells and their neighbours).
+        nodes: Local nodes within ``rings + 2`` hops: every node of a wide cell.
         rebuilds: Number of rebuilds so far (a version number for caches).
 
     Args:
@@ -79,25 +79,34 @@ class ActiveSet:
         """Number of active local cells."""
         return int(self.cells.size)
 
-    def update(self, q: np.ndarray) -> bool:
-        """Rebuild the set if the flow ``q`` (n_nodes_local, 3) nears its edge (collective).
+    def update(self, q: np.ndarray, nodes: np.ndarray | None = None) -> bool:
+        """Rebuild the set if the flow nears its edge (collective).
+
+        Args:
+            q: (n_nodes_local, 3) state, or its rows at ``nodes`` (the flow is exactly zero
+                elsewhere).
+            nodes: Local nodes of the rows of ``q`` (default: all).
 
         Returns:
             True when the set was rebuilt.
         """
-        wet = np.any(q != 0.0, axis=1)
-        inside = self.inner is not None and bool(np.all(self.inner[wet]))
+        wet_rows = np.any(q != 0.0, axis=1)
+        wet_idx = np.flatnonzero(wet_rows) if nodes is None else nodes[wet_rows]
+        inside = self.inner is not None and bool(np.all(self.inner[wet_idx]))
         if self.disc.comm.allreduce(inside, op=MPI.LAND):
             return False
-        hops = [wet.astype(np.float64)]
-        for _ in range(self.rings + 1):
+        wet = np.zeros(self.disc.coords.shape[0])
+        wet[wet_idx] = 1.0
+        hops = [wet]
+        for _ in range(self.rings + 2):
             hops.append(self._grow(hops[-1]))
-        self.inner = hops[-3] > 0.0
-        self.mask = hops[-2][self.disc.cell_nodes].max(axis=1) > 0.0
+        cells = self.disc.cell_nodes
+        self.inner = hops[-4] > 0.0
+        self.mask = hops[-3][cells].max(axis=1) > 0.0
         self.cells = np.flatnonzero(self.mask)
         self.owned = self.cells[self.cells < self.disc.n_owned_cells]
+        self.wide = np.flatnonzero(hops[-2][cells].max(axis=1) > 0.0)
         self.nodes = np.flatnonzero(hops[-1] > 0.0)
-        self.wide = np.flatnonzero(hops[-1][self.disc.cell_nodes].max(axis=1) > 0.0)
         self._cache = {}
         self.rebuilds += 1
         return True

@@ -8,6 +8,7 @@ from types import ModuleType
 from fem_runout.bench import (
     before_after,
     dampm_report,
+    footprint,
     peers,
     real_case,
     step_cost,
@@ -23,6 +24,7 @@ COMMANDS: dict[str, ModuleType] = {
     "real-case": real_case,
     "before-after": before_after,
     "peers": peers,
+    "footprint": footprint,
 }
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 

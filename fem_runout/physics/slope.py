@@ -81,6 +81,10 @@ class SlopeGeometry:
         self.cos2 = 1.0 / (1.0 + self.grad[:, 0] ** 2 + self.grad[:, 1] ** 2)
         self.cos = np.sqrt(self.cos2)
 
+    def take(self, nodes: np.ndarray) -> SlopeGeometry:
+        """Return the geometry of a subset of the nodes (indices)."""
+        return SlopeGeometry(self.grad[nodes], self.hess[nodes], self.g, self.curvature)
+
     def normal_acceleration(self, ux: np.ndarray, uy: np.ndarray) -> np.ndarray:
         """``max(g + u·H·u, 0)``: vertical acceleration a flow following the bed needs [m/s²]."""
         hxx, hxy, hyy = self.hess[:, 0], self.hess[:, 1], self.hess[:, 2]

@@ -81,9 +81,9 @@ class ActiveForms(ActiveSet):
             raise ValueError("the predictor must have one cell integral")
         return predictor.restricted([self.cells.astype(np.int32)])
 
-    def update(self, q: np.ndarray) -> bool:
-        """Rebuild the set and the assemblers if the flow ``q`` nears the edge (collective)."""
-        if not super().update(q):
+    def update(self, q: np.ndarray, nodes: np.ndarray | None = None) -> bool:
+        """Rebuild the set and the assemblers if the flow nears the edge (collective)."""
+        if not super().update(q, nodes):
             return False
         self.forms = [restrict(a, self.mask) for a in self.full]
         self.predictor = self._ghosted(self.full[0])

@@ -132,7 +132,7 @@ class DiffusionReaction:
         return d.comm.allreduce(local, op=MPI.MAX)
 
     # -- one step ----------------------------------------------------------------------------
-    def step(self, q: np.ndarray, dt: float) -> np.ndarray:
+    def step(self, q: np.ndarray, dt: float, nodes: np.ndarray | None = None) -> np.ndarray:
         """Advance the momenta (n, 2) by ``dt``; returns the new momenta.
 
         The rheology is integrated by the IMEX-RKC of eq. 17 with the friction as its implicit
@@ -142,27 +142,46 @@ class DiffusionReaction:
         for m >= 4 stages is so small that Coulomb friction no longer stops a flow exactly
         (tests/test_rkc.py); over the full step the Coulomb yield test is exact, so a
         decelerating flow stops and stays stopped.
+
+        Args:
+            q: (n, 2) momenta at the local nodes ``nodes`` (all of them with a rheology).
+            dt: Time step.
+            nodes: Local nodes of the rows of ``q`` (default: all).
         """
-        h = self.h.x.array
+        h = self.h.x.array if nodes is None else self.h.x.array[nodes]
         if self.rheology is not None:
+            if nodes is not None and nodes.size != self.h.x.array.size:
+                raise ValueError("the rheology's stress needs every node")
             sigma = self.update_viscosity(q)
             q = self.rkc.step(q, dt, sigma, self.diffusion_rate, lambda rhs, th: rhs,
                               lambda w: np.zeros_like(w))
             self.last_stages = self.rkc.last_stages
         if self.friction is not None:
             qx, qy = self.friction.implicit_update(h, q[:, 0], q[:, 1], q[:, 0], q[:, 1], dt,
-                                                   self.bed(q))
+                                                   self.bed(q, nodes))
             q = np.stack([qx, qy], axis=1)
         return q
 
+    def bed(self, q: np.ndarray, nodes: np.ndarray | None = None) -> BedFrame | None:
+        """Return the bed under the nodes for the friction (None in the seed's form).
 
-    def bed(self, q: np.ndarray) -> BedFrame | None:
-        """Return the bed under the nodes for the friction (None in the seed's form)."""
+        Args:
+            q: (n, 2) momenta at the local nodes ``nodes``.
+            nodes: Local nodes of the rows of ``q`` (default: all).
+        """
         if self.slope is None:
             return None
-        h = self.h.x.array
+        h = self.h.x.array if nodes is None else self.h.x.array[nodes]
+        slope = self.slope if nodes is None else self._slope_on(nodes)
         f = np.where(h > self.tol, 1.0 / np.where(h > self.tol, h, 1.0), 0.0)
-        return self.slope.frame(q[:, 0] * f, q[:, 1] * f)
+        return slope.frame(q[:, 0] * f, q[:, 1] * f)
+
+    def _slope_on(self, nodes: np.ndarray) -> SlopeGeometry:
+        """Return the slope geometry of ``nodes`` (cached for the last node set)."""
+        key = self.__dict__.get("_slope_key")
+        if key is None or key[0] is not nodes:
+            self._slope_key = (nodes, self.slope.take(nodes))
+        return self._slope_key[1]
 
 
 def _center_gradients(xc: np.ndarray) -> np.ndarray:

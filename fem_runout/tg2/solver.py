@@ -65,18 +65,24 @@ class TG2Solver:
         return min(dt, self.transport.acceleration_dt())
 
     def advance(self, dt: float) -> None:
-        """One step of size dt (Strang-split when there is a diffusion–reaction part)."""
+        """One step of size dt (Strang-split when there is a diffusion–reaction part).
+
+        With friction only, ``D`` is node-wise: it works on the transport's active nodes
+        (the flow is exactly zero elsewhere); the rheology's stress couples the nodes and
+        works on all of them.
+        """
         if self.reaction is None:
             self.transport.step(dt)
             return
-        self.transport.step(0.5 * dt)
         t = self.transport
-        rest = self._unused_capacity(t.state(), dt)
-        q = self.reaction.step(t.state()[:, 1:], dt)
-        state = t.state()
-        state[:, 1:] = q
-        zero_wall_normal(self.disc.sides, state[:, 1], state[:, 2])
-        t.set_state(state)
+        t.step(0.5 * dt)
+        nodes = t.active.nodes if self.reaction.rheology is None else None
+        state = self._state(nodes)
+        rest = self._unused_capacity(state, dt, nodes)
+        state[:, 1:] = self.reaction.step(state[:, 1:], dt, nodes)
+        sides = self.disc.sides if nodes is None else t.active.sides()
+        zero_wall_normal(sides, state[:, 1], state[:, 2])
+        self._set_state(nodes, state)
         remaining = 0.5 * dt
         while remaining > 0.0:
             sub = min(remaining, self.cfl * t.stable_dt())
@@ -84,14 +90,28 @@ class TG2Solver:
                 sub = remaining
             t.step(sub)
             remaining -= sub
-        if rest is not None:
-            state = t.state()
+        if rest is not None:  # nodes off the set were dry before and after (CFL <= 1)
+            state = self._state(nodes)
             norm = np.hypot(state[:, 1], state[:, 2])
             keep = np.where(norm > rest, 1.0 - rest / np.where(norm > 0.0, norm, 1.0), 0.0)
             state[:, 1:] *= keep[:, None]
-            t.set_state(state)
+            self._set_state(nodes, state)
 
-    def _unused_capacity(self, state: np.ndarray, dt: float) -> np.ndarray | None:
+    def _state(self, nodes: np.ndarray | None) -> np.ndarray:
+        """Return the state at ``nodes`` (None: every local node)."""
+        t = self.transport
+        return t.state() if nodes is None else t.state_on(nodes)
+
+    def _set_state(self, nodes: np.ndarray | None, state: np.ndarray) -> None:
+        """Set the state at ``nodes`` (None: every local node)."""
+        t = self.transport
+        if nodes is None:
+            t.set_state(state)
+        else:
+            t.set_state_on(nodes, state)
+
+    def _unused_capacity(self, state: np.ndarray, dt: float,
+                         nodes: np.ndarray | None) -> np.ndarray | None:
         """Coulomb capacity left after D, ``max(0, dt g μ h - |q|)``, per node (or None).
 
         Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step that gives a layer
@@ -101,12 +121,13 @@ class TG2Solver:
         of the friction law itself. Giving the second half its own full capacity
         ``dt/2 g μ h`` instead stopped a decelerating sheet up to a quarter step early
         (Coulomb stop test). A projection with no mask: moving nodes have ``rest = 0``.
+        ``state`` holds the rows of ``nodes`` (None: every local node).
         """
         friction = self.reaction.friction if self.reaction is not None else None
         if friction is None or not friction.has_yield:
             return None
         cap = friction.yield_impulse(state[:, 0], state[:, 1], state[:, 2], dt,
-                                     self.reaction.bed(state[:, 1:]))
+                                     self.reaction.bed(state[:, 1:], nodes))
         return np.maximum(cap - np.hypot(state[:, 1], state[:, 2]), 0.0)
 
     def snapshot(self) -> tuple[np.ndarray, float]:

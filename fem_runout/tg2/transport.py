@@ -84,17 +84,29 @@ class Transport:
         self._beta = self.limiter.beta_all
         self._fresh = False  # low-order rates of the current state are cached
         self._dt = 0.0  # the step being taken
-        self._active_key, self._active_cache = -1, ()
+        self._anywhere = True  # the state was set on every node (not just the set's)
+        self._active_key, self._on = -1, {}
 
     # -- state -----------------------------------------------------------------------------
     def state(self) -> np.ndarray:
         """(n_nodes_local, 3) copy of (h, hu, hv)."""
         return np.stack([self.h.x.array, self.hu.x.array, self.hv.x.array], axis=1)
 
+    def state_on(self, nodes: np.ndarray) -> np.ndarray:
+        """(len(nodes), 3) copy of (h, hu, hv) at the local nodes ``nodes``."""
+        return np.stack([self.h.x.array[nodes], self.hu.x.array[nodes],
+                         self.hv.x.array[nodes]], axis=1)
+
+    def set_state_on(self, nodes: np.ndarray, q: np.ndarray) -> None:
+        """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values)."""
+        self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes] = q.T
+        self._fresh = False
+
     def set_state(self, q: np.ndarray) -> None:
         """Set (h, hu, hv) from a (n_nodes_local, 3) array (ghosts included)."""
         self.h.x.array[:], self.hu.x.array[:], self.hv.x.array[:] = q[:, 0], q[:, 1], q[:, 2]
         self._fresh = False
+        self._anywhere = True
 
     # -- time step ---------------------------------------------------------------------------
     def stable_dt(self) -> float:
@@ -106,7 +118,7 @@ class Transport:
         """
         d, a = self.disc, self.active
         self._low_order_pass()
-        cap = a.cell_sum(self._active_arrays()[4])
+        cap = a.cell_sum(self._arrays()["cap"])
         nodes = a.nodes
         for side in a.sides():
             if side.kind == "open":
@@ -114,7 +126,7 @@ class Transport:
                 un = self.ux.x.array[i] * side.normal[0] + self.uy.x.array[i] * side.normal[1]
                 cap[side.nodes] += side.weight * np.maximum(un, 0.0)
         own = slice(0, a.n_owned_nodes)
-        c, m = cap[own], self._active_arrays()[5][own]
+        c, m = cap[own], self._arrays()["mass"][own]
         ratio = m[c > 0.0] / c[c > 0.0]
         local = float(ratio.min()) if ratio.size else np.inf
         return d.comm.allreduce(local, op=MPI.MIN)
@@ -137,36 +149,46 @@ class Transport:
         return acceleration_limit(min(self.disc.spacing), self.g, top)
 
     def _low_order_pass(self) -> None:
-        """Velocity, low-order rates A_L (self._lo) and capacities (self._cap) of the state."""
-        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
-        velocity(h, hu, hv, self.kappa, self.ux.x.array, self.uy.x.array)
-        if self.slope is not None:
-            self.gn[:] = self.slope.pressure_gravity(self.ux.x.array, self.uy.x.array)
+        """Velocity, low-order rates A_L and capacities of the state, on the active set."""
         if self.active_set:  # dry cells give exact zeros: visit the active ones only
-            self.active.update(self.state())
-        cells, beta, cc, lo, cap = self._active_arrays()[:5]
-        cap[:] = 0.0
-        low_order_pass(cells, beta, cc, h, hu, hv, z, self.ux.x.array, self.uy.x.array,
-                       self.gn, self.kappa, lo, cap)
+            if self._anywhere:  # set by set_state: the flow may be anywhere
+                self.active.update(self.state())
+            else:  # the step wrote the set's nodes only
+                self.active.update(self.state_on(self.active.nodes), self.active.nodes)
+            self._anywhere = False
+        on = self._arrays()
+        nodes = on["nodes"]
+        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        ux, uy = np.empty(nodes.size), np.empty(nodes.size)
+        velocity(h[nodes], hu[nodes], hv[nodes], self.kappa, ux, uy)
+        self.ux.x.array[nodes], self.uy.x.array[nodes] = ux, uy
+        if self.slope is not None:
+            self.gn[nodes] = on["slope"].pressure_gravity(ux, uy)
+        on["cap"][:] = 0.0
+        low_order_pass(on["cells"], on["beta"], on["C"], h, hu, hv, z, self.ux.x.array,
+                       self.uy.x.array, self.gn, self.kappa, on["lo"], on["cap"])
         self._fresh = True
 
-    def _active_arrays(self) -> tuple[np.ndarray, ...]:
-        """Return the active owned cells' arrays: nodes, pair and ``C`` coefficients, and rates.
+    def _arrays(self) -> dict[str, object]:
+        """Return the active set's arrays, cached until it is rebuilt.
 
-        Then the low-order rates ``A_L`` and the capacities of the current state (``lo``,
-        ``cap``), and the compact lumped mass and bed of the set's nodes. Cached until the
-        active set is rebuilt.
+        The active owned cells' nodes, pair and ``C`` coefficients, their low-order rates
+        ``A_L`` and capacities of the current state (``lo``, ``cap``), and the compact nodes,
+        lumped mass, bed and slope geometry of the set's nodes.
         """
         if self._active_key != self.active.rebuilds:
-            idx = self.active.owned
-            nodes = self.active.nodes
-            self._active_cache = (np.ascontiguousarray(self.disc.cell_nodes[idx]),
-                                  np.ascontiguousarray(self._beta[idx]),
-                                  np.ascontiguousarray(self.disc.C[idx]),
-                                  np.empty((idx.size, 4, 3)), np.empty((idx.size, 4)),
-                                  self.disc.lumped_mass[nodes], self.z.x.array[nodes])
+            idx, nodes = self.active.owned, self.active.nodes
+            self._on = {
+                "cells": np.ascontiguousarray(self.disc.cell_nodes[idx]),
+                "beta": np.ascontiguousarray(self._beta[idx]),
+                "C": np.ascontiguousarray(self.disc.C[idx]),
+                "lo": np.empty((idx.size, 4, 3)), "cap": np.empty((idx.size, 4)),
+                "nodes": nodes, "mass": self.disc.lumped_mass[nodes],
+                "z": self.z.x.array[nodes],
+                "slope": None if self.slope is None else self.slope.take(nodes),
+            }
             self._active_key = self.active.rebuilds
-        return self._active_cache
+        return self._on
 
     def step(self, dt: float) -> None:
         """Advance (h, hu, hv) by ``dt`` on the active set (compact arrays; dry elsewhere)."""
@@ -176,28 +198,26 @@ class Transport:
         # the low-order pass of this state (here or in stable_dt) updated the active set
         a = self.active
         high = self.high.contributions(a, None if self.slope is None else self.gn, dt)
-        arrays = self._active_arrays()
-        m, z = arrays[5], arrays[6]
+        arrays = self._arrays()
+        m, z = arrays["mass"], arrays["z"]
         nodes = a.nodes
-        q0 = np.stack([self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes]],
-                      axis=1)
+        q0 = self.state_on(nodes)
         u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
         q_low = q0 + dt * self._low_order_rates(q0, u, m)
-        aec = high - dt * arrays[3]
+        aec = high - dt * arrays["lo"]
         if self.fct_enabled:
             corr = self.limiter.correction(q0, q_low, aec, z, u, a)
         else:
             corr = a.cell_sum(aec)
         q_new = q_low + corr / m[:, None]
         self._bound_speed(q_low, q_new, z)
-        self._finalise(q_new)
-        self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes] = q_new.T
-        self._fresh = False
+        self._finalise(q_new, q0, u)
+        self.set_state_on(nodes, q_new)
 
     # -- pieces ------------------------------------------------------------------------------
     def _low_order_rates(self, q: np.ndarray, u: np.ndarray, m: np.ndarray) -> np.ndarray:
         """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i (compact arrays)."""
-        acc = self.active.cell_sum(self._active_arrays()[3])
+        acc = self.active.cell_sum(self._arrays()["lo"])
         acc += self._boundary_flux(q, u)
         return acc / m[:, None]
 
@@ -231,17 +251,20 @@ class Transport:
         bounds.bound_speed(a.compact_cells("cells"), a.reducer, q_low, q, z, self.g,
                            np.hypot(ux, uy), self.gn[a.nodes])
 
-    def _finalise(self, q: np.ndarray) -> None:
+    def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
 
-        ``q`` holds the active set's nodes (compact); the others are exactly dry.
+        ``q`` (new), ``q0`` and ``u`` (start of the step) hold the active set's nodes
+        (compact); the others are exactly dry.
         """
-        d = self.disc
-        zero_wall_normal(self.active.sides(), q[:, 1], q[:, 2])
+        a = self.active
+        sides = a.sides()
+        zero_wall_normal(sides, q[:, 1], q[:, 2])
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
         # so that the runner stops with a message
         local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
-        hmax = d.comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
+        comm = self.disc.comm
+        hmax = comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
         tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
         q[tiny, 0] = 0.0
         # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
@@ -249,11 +272,11 @@ class Transport:
         ht = np.maximum(q[thin, 0], 0.0)
         q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
         out = 0.0
-        h, ux, uy = self.h.x.array, self.ux.x.array, self.uy.x.array
-        for side in d.sides:
+        owned = a.n_owned_nodes
+        for side in sides:
             if side.kind == "open":
-                own = side.nodes < d.n_owned_nodes
+                own = side.nodes < owned
                 i = side.nodes[own]
-                un = np.maximum(ux[i] * side.normal[0] + uy[i] * side.normal[1], 0.0)
-                out += float(np.sum(side.weight[own] * h[i] * un))
-        self.outflow_volume += self._dt * d.comm.allreduce(out)
+                un = np.maximum(u[0, i] * side.normal[0] + u[1, i] * side.normal[1], 0.0)
+                out += float(np.sum(side.weight[own] * q0[i, 0] * un))
+        self.outflow_volume += self._dt * comm.allreduce(out)
