@@ -119,6 +119,42 @@ def test_projection_is_exact_for_gauss_sampled_fields_and_positive_for_one_parti
     assert abs(np.sum(proj.lumped_mass * out[:, 0]) - 0.2) < 1e-15
 
 
+def test_tridiagonal_solve_with_truncated_ends_matches_a_dense_solve():
+    n = 9
+    m = (np.diag(np.full(n, 4.0)) + np.diag(np.ones(n - 1), 1) + np.diag(np.ones(n - 1), -1))
+    m[-1, -1] = 2.0  # first row inside the grid (truncated), last one a domain end
+    rhs = np.random.default_rng(3).random((2, n))
+    x = tridiagonal_mass_solve(rhs, False, True)
+    assert np.abs(x @ (m / 6.0).T - rhs).max() < 1e-14
+
+
+def test_projection_on_a_window_is_the_whole_grid_projection_to_round_off():
+    """Issue 16: a particle cluster in a corner of a 200 x 150 grid; the window's truncation
+    (24 nodes of margin, M_C^{-1} decaying like 0.27^k) changes nothing above round-off."""
+    from mpm.projection import WINDOW_MARGIN
+
+    proj = GridProjector((200, 150), (2.0, 3.0))
+    ny1, nx1 = proj.shape
+    rng = np.random.default_rng(5)
+    sums = np.zeros((ny1 * nx1, 2))
+    j, i = np.meshgrid(np.arange(10, 30), np.arange(20, 45), indexing="ij")
+    nodes = (j * nx1 + i).ravel()
+    sums[nodes, 0] = 6.0 * (1.0 + rng.random(nodes.size))
+    sums[nodes, 1] = rng.random(nodes.size) - 0.5
+    window = proj.window(sums[:, 0])
+    assert window is not None and window[1] - window[0] < ny1 and window[3] - window[2] < nx1
+    assert window[0] == 0 and window[2] == 0  # clipped at the grid's sides
+    out = proj.project(sums)
+    # the reference: the same blend on the whole grid (a window that is the whole grid)
+    full = GridProjector((200, 150), (2.0, 3.0))
+    full.window = lambda weights: (0, ny1, 0, nx1)
+    ref = full.project(sums)
+    scale = np.abs(ref[:, 0]).max()
+    assert np.abs(out - ref).max() <= 1e-12 * scale
+    assert WINDOW_MARGIN >= 20
+    assert abs(np.sum(proj.lumped_mass * out[:, 0]) - np.sum(sums[:, 0])) < 1e-9
+
+
 def _weights(grid, p, point=False):
     lx, ly = (0 * p.lx, 0 * p.ly) if point else (p.lx, p.ly)
     return gimp_weights(p.cell, p.xi, p.eta, lx, ly, grid.nx, grid.ny, grid.dx, grid.dy)
