@@ -17,15 +17,75 @@ step; nothing else writes to them, so every entry off the wide cells stays zero.
 from __future__ import annotations
 
 import basix.ufl
+import numba
 import numpy as np
 from dolfinx import fem, la
 
 from fem_runout.mesh import Discretization, facet_measures
 from fem_runout.tg2.active import ActiveForms
 from fem_runout.tg2.forms import corrector_form, predictor_form
-from fem_runout.tg2.low_order import cell_means, reconstructed_surface, velocity_factor
+from fem_runout.tg2.low_order import reconstructed_surface
 
 __all__ = ["HighOrder"]
+
+
+@numba.njit(cache=True)
+def _put(values, dofs, data):
+    """``values[dofs[k, a]] = data[k, a]``."""
+    for k in range(dofs.shape[0]):
+        for a in range(dofs.shape[1]):
+            values[dofs[k, a]] = data[k, a]
+
+
+@numba.njit(cache=True)
+def _zero_blocks(values, blocks, bs):
+    """Zero the ``bs`` entries of every block index in ``blocks`` (any shape)."""
+    flat = blocks.reshape(-1)
+    for k in range(flat.shape[0]):
+        for c in range(bs):
+            values[bs * flat[k] + c] = 0.0
+
+
+@numba.njit(cache=True)
+def _sum_blocks(b0, b1, blocks, out):
+    """``out[k, a, c] = b0[3 d + c] + b1[3 d + c]`` with ``d = blocks[k, a]``."""
+    for k in range(blocks.shape[0]):
+        for a in range(4):
+            d = 3 * blocks[k, a]
+            for c in range(3):
+                out[k, a, c] = b0[d + c] + b1[d + c]
+
+
+@numba.njit(cache=True)
+def _cell_states(cells, h, qx, qy, cell_eta, b, dof0, dofs0, area, kappa, Qk, uk, etak):
+    """DG0 states at the half step from the predictor increments ``b`` (eq. 10, first line).
+
+    ``Q_K = mean(Q) + b_K / |K|``, ``η_K = mean(η̃) + b_K[h] / |K|`` and the desingularised
+    velocity of ``Q_K`` (:func:`.low_order.velocity_factor`, the same operations): the
+    cell means of :func:`.low_order.cell_means`, fused in one pass.
+    """
+    for k in range(cells.shape[0]):
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        se = 0.0
+        for a in range(4):
+            i = cells[k, a]
+            s0 += h[i]
+            s1 += qx[i]
+            s2 += qy[i]
+            se += cell_eta[k, a]
+        d = dof0[k]
+        dh = b[3 * d] / area[k]
+        v0 = 0.25 * s0 + dh
+        v1 = 0.25 * s1 + b[3 * d + 1] / area[k]
+        v2 = 0.25 * s2 + b[3 * d + 2] / area[k]
+        Qk[3 * d], Qk[3 * d + 1], Qk[3 * d + 2] = v0, v1, v2
+        etak[dofs0[k]] = 0.25 * se + dh
+        hp = max(v0, 0.0)
+        hk = max(v0, kappa)
+        f = 2.0 * hp / (hp * hp + hk * hk)
+        uk[2 * d], uk[2 * d + 1] = v1 * f, v2 * f
 
 
 class HighOrder:
@@ -95,28 +155,23 @@ class HighOrder:
         cells = on["cells"]
         cell_eta = on["cell_eta"]
         reconstructed_surface(cells, h, z, self.kappa, cell_eta)
-        self.eta_t.x.array[on["dofsd"]] = cell_eta
+        _put(self.eta_t.x.array, on["dofsd"], cell_eta)
         if gn is not None:
             self.gk.x.array[on["dofs0"]] = gn[cells].mean(axis=1)
         pred, corr = active.predictor, active.forms[1:]
-        b = self.b_pred.array.reshape(-1, 3)
-        b[on["dof0"]] = 0.0
+        _zero_blocks(self.b_pred.array, on["dof0"], 3)
         pred.assemble(self.b_pred.array)
-        delta = b[on["dof0"]] / on["area"][:, None]
-        means, eta_mean = on["means"], on["eta_mean"]
-        cell_means(cells, h, hu, hv, cell_eta, means, eta_mean)
-        vals = means + delta
-        self.Qk.x.array.reshape(-1, 3)[on["dof0"]] = vals
-        self.etak.x.array[on["dofs0"]] = eta_mean + delta[:, 0]
-        factor = velocity_factor(vals[:, 0], self.kappa)
-        self.uk.x.array.reshape(-1, 2)[on["dof0"]] = vals[:, 1:] * factor[:, None]
+        _cell_states(cells, h, hu, hv, cell_eta, self.b_pred.array, on["dof0"], on["dofs0"],
+                     on["area"], self.kappa, self.Qk.x.array, self.uk.x.array,
+                     self.etak.x.array)
         for vec, form in zip(self.b_corr, corr, strict=True):
-            vec.array.reshape(-1, 3)[on["dofd"]] = 0.0
+            _zero_blocks(vec.array, on["dofd"], 3)
             form.assemble(vec.array)
             vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
-        own = on["dofd_owned"]
         # cell + vertical facets, then horizontal facets
-        return self.b_corr[0].array.reshape(-1, 3)[own] + self.b_corr[1].array.reshape(-1, 3)[own]
+        out = on["out"]
+        _sum_blocks(self.b_corr[0].array, self.b_corr[1].array, on["dofd_owned"], out)
+        return out
 
     def _arrays(self, active: ActiveForms) -> dict[str, np.ndarray]:
         """Return the wide cells' nodes, dofs and buffers; vectors zeroed at each rebuild."""
@@ -130,8 +185,8 @@ class HighOrder:
             "dofd": dofs["dofd"][w], "dofsd": dofs["dofsd"][w],
             "dofd_owned": dofs["dofd"][active.owned],
             "area": d.cell_area[w],
-            "cell_eta": np.empty((w.size, 4)), "means": np.empty((w.size, 3)),
-            "eta_mean": np.empty(w.size),
+            "cell_eta": np.empty((w.size, 4)),
+            "out": np.empty((active.owned.size, 4, 3)),
         }
         for vec in (self.b_pred, *self.b_corr):
             vec.array[:] = 0.0
