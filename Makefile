@@ -42,6 +42,7 @@ lint: setup
 	$(VENV)/bin/ruff check fem_runout mpm tests
 
 # the suite runs every benchmark with every implemented method on 1 and 2 ranks (< 30 min);
+# footprint: avaKot on its DEM and on a 4x larger padded one, both methods (about 6 min);
 # the TG2-only fine-grid report is `$(PY) -m fem_runout.bench tg2-report` (about 12 min)
 bench: setup
 	$(PY) -m fem_runout.bench suite --ranks 1 2 3 --out docs/benchmarks.md --figures docs/figures
@@ -51,6 +52,9 @@ bench: setup
 	$(PY) -m fem_runout.bench step-cost --method mpm --cells 50 158 500 --steps 10 --ranks 1 2 \
 		--set 'initial.depth=1 + sqrt(maximum(25 - (x-25)**2 - (y-25)**2, 0))' \
 		--out docs/step_cost_dampm.md
+	@if [ -f "$${FEM_RUNOUT_DATA:-../shared/data}/avaKot/avaKot.asc" ]; then \
+		$(PY) -m fem_runout.bench footprint --methods tg2 mpm --out docs/performance.md; \
+	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; fi
 
 clean:
 	rm -rf results .pytest_cache
