@@ -244,36 +244,55 @@ class GhostReducer:
         recv_counts = np.array(self.comm.alltoall(self.send_counts.tolist()), dtype=np.int64)
         self.recv_counts = recv_counts
         recv = np.empty(int(recv_counts.sum()), dtype=np.int64)
-        self._exchange(ghosts[order].astype(np.int64), recv)
+        self.comm.Alltoallv(
+            [ghosts[order].astype(np.int64),
+             (self.send_counts, np.concatenate([[0], np.cumsum(self.send_counts)[:-1]]))],
+            [recv, (recv_counts, np.concatenate([[0], np.cumsum(recv_counts)[:-1]]))])
         self.recv_local = (recv - imap.local_range[0]).astype(np.int64)
         #: positions of the ghosts and of the owned copies in the reduced arrays (-1: absent)
         self.send_pos, self.recv_pos = self.send_local, self.recv_local
 
-    def _exchange(self, send: np.ndarray, recv: np.ndarray, back: bool = False) -> None:
-        out, into = (self.recv_counts, self.send_counts) if back else \
-            (self.send_counts, self.recv_counts)
-        sd = np.concatenate([[0], np.cumsum(out)[:-1]])
-        rd = np.concatenate([[0], np.cumsum(into)[:-1]])
+    def _exchange(self, send: np.ndarray, recv: np.ndarray, back: bool = False,
+                  width: int = 1) -> None:
+        """Alltoallv of ``width`` values per ghost: to the owners, or ``back`` to the ghosts."""
+        key = (back, width)
+        plan = self.__dict__.setdefault("_plans", {})
+        if key not in plan:
+            out, into = (self.recv_counts, self.send_counts) if back else \
+                (self.send_counts, self.recv_counts)
+            out, into = out * width, into * width
+            plan[key] = (out, np.concatenate([[0], np.cumsum(out)[:-1]]),
+                         into, np.concatenate([[0], np.cumsum(into)[:-1]]))
+        out, sd, into, rd = plan[key]
         self.comm.Alltoallv([send, (out, sd)], [recv, (into, rd)])
 
     def reduce(self, values: np.ndarray, op: str) -> None:
-        """Reduce ``values`` (local, owned then ghosts) in place with ``op`` = "max" or "min"."""
+        """Reduce ``values`` in place with ``op`` = "max" or "min" over the sharing ranks.
+
+        Args:
+            values: (n,) local values (owned then ghosts), or (k, n): k arrays reduced
+                together (one exchange each way).
+            op: "max" or "min".
+        """
         if self.comm.size == 1:
             return
+        rows = values if values.ndim == 2 else values[np.newaxis]  # a view: reduced in place
+        k = rows.shape[0]
         ident = -np.inf if op == "max" else np.inf
         sent = self.send_pos >= 0
-        send = np.full(self.send_pos.size, ident)
-        send[sent] = values[self.send_pos[sent]]
-        recv = np.empty(self.recv_pos.size)
-        self._exchange(send, recv)
+        send = np.full((self.send_pos.size, k), ident)
+        send[sent] = rows[:, self.send_pos[sent]].T
+        recv = np.empty((self.recv_pos.size, k))
+        self._exchange(send, recv, width=k)
         here = self.recv_pos >= 0
         ufunc = np.maximum if op == "max" else np.minimum
-        ufunc.at(values, self.recv_pos[here], recv[here])
-        back = np.zeros(self.recv_pos.size)
-        back[here] = values[self.recv_pos[here]]
-        ghosts = np.empty(self.send_pos.size)
-        self._exchange(back, ghosts, back=True)
-        values[self.send_pos[sent]] = ghosts[sent]
+        for r in range(k):
+            ufunc.at(rows[r], self.recv_pos[here], recv[here, r])
+        back = np.zeros((self.recv_pos.size, k))
+        back[here] = rows[:, self.recv_pos[here]].T
+        ghosts = np.empty((self.send_pos.size, k))
+        self._exchange(back, ghosts, back=True, width=k)
+        rows[:, self.send_pos[sent]] = ghosts[sent].T
 
     def on(self, nodes: np.ndarray) -> GhostReducer:
         """Return a reducer of arrays ``a`` with ``a[k]`` the value at local node ``nodes[k]``.

@@ -147,10 +147,8 @@ class Limiter:
         fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
         bar_state_extrema(cells, arrays["beta"], a[0], u[0], u[1], z,
                           self.g[region.nodes], hi[1:], lo[1:])
-        reducer = region.reducer
-        for c in range(3):
-            reducer.reduce(hi[c], "max")
-            reducer.reduce(lo[c], "min")
+        region.reducer.reduce(hi, "max")
+        region.reducer.reduce(lo, "min")
         slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
         hi[1:] += slack
         lo[1:] -= slack
