@@ -181,7 +181,7 @@ class ActiveSet:
         flat = np.ascontiguousarray(contrib.reshape(-1, bs))
         out = np.empty((self.nodes.size, bs))
         if vec is None:
-            cellsum.gather_total_on(src, flat, out)
+            cellsum.gather_total(src, flat, out)
         else:
             # the buffer is zero off the nodes (fresh at each rebuild, and every rank
             # agrees on the nodes), so the exchange adds exact zeros there

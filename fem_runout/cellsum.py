@@ -18,8 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cell_slots", "gather", "gather_on", "gather_total", "gather_total_on", "sources",
-           "total", "total_on"]
+__all__ = ["cell_slots", "gather", "gather_on", "gather_total", "sources", "total", "total_on"]
 
 
 def cell_slots(xc: np.ndarray) -> np.ndarray:
@@ -71,7 +70,11 @@ def gather(src, flat, buf):
 
 @numba.njit(cache=True)
 def gather_total(src, flat, out):
-    """:func:`gather` then :func:`total` without the buffer (one rank)."""
+    """:func:`gather` then :func:`total` without the buffer (one rank).
+
+    ``out[k]`` from the slots ``src[k]``: all nodes, or the rows of a subset
+    (:mod:`fem_runout.active`).
+    """
     for i in range(src.shape[0]):
         for c in range(flat.shape[1]):
             acc = 0.0
@@ -79,18 +82,6 @@ def gather_total(src, flat, out):
                 j = src[i, s]
                 acc = acc + (flat[j, c] if j >= 0 else 0.0)
             out[i, c] = acc
-
-
-@numba.njit(cache=True)
-def gather_total_on(src, flat, out):
-    """:func:`gather_total` into compact rows: ``out[k]`` from the slots ``src[k]``."""
-    for k in range(src.shape[0]):
-        for c in range(flat.shape[1]):
-            acc = 0.0
-            for s in range(4):
-                j = src[k, s]
-                acc = acc + (flat[j, c] if j >= 0 else 0.0)
-            out[k, c] = acc
 
 
 @numba.njit(cache=True)

@@ -61,8 +61,9 @@ def _cell_states(cells, h, qx, qy, cell_eta, b, dof0, dofs0, area, kappa, Qk, uk
     """DG0 states at the half step from the predictor increments ``b`` (eq. 10, first line).
 
     ``Q_K = mean(Q) + b_K / |K|``, ``η_K = mean(η̃) + b_K[h] / |K|`` and the desingularised
-    velocity of ``Q_K`` (:func:`.low_order.velocity_factor`, the same operations): the
-    cell means of :func:`.low_order.cell_means`, fused in one pass.
+    velocity of ``Q_K`` (:func:`.low_order.velocity_factor`, the same operations), in one
+    pass. On a parallelogram the mean of the four nodal values is the exact cell average of
+    the Q1 interpolant, the DG0 projection the predictor starts from.
     """
     for k in range(cells.shape[0]):
         s0 = 0.0

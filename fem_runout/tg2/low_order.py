@@ -188,31 +188,6 @@ def reconstructed_surface(cells, h, z, tol, out):
 
 
 @numba.njit(cache=True)
-def cell_means(cells, h, qx, qy, eta_cell, out, out_eta):
-    """Cell means of the nodal (h, qx, qy) and of the per-cell free surface η̃.
-
-    On a parallelogram the mean of the four nodal values is the exact cell average of the Q1
-    interpolant, i.e. the DG0 projection used by the predictor.
-    """
-    for k in range(cells.shape[0]):
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        se = 0.0
-        for a in range(4):
-            i = cells[k, a]
-            s0 += h[i]
-            s1 += qx[i]
-            s2 += qy[i]
-            se += eta_cell[k, a]
-        out[k, 0] = 0.25 * s0
-        out[k, 1] = 0.25 * s1
-        out[k, 2] = 0.25 * s2
-        out_eta[k] = 0.25 * se
-
-
-
-@numba.njit(cache=True)
 def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
     """Extend per-node momentum bounds by the momenta of the low-order bar states.
 
