@@ -130,7 +130,14 @@ class MPMSolver:
 
         The ratio sets the PIC share of :meth:`advance`: it damps per unit time as at the
         transport step, whatever the viscous limit (docs/dampm.md, "FLIP/PIC blend").
+        Computed once per state (:meth:`_refresh` starts a new one).
         """
+        if self._limits is None:
+            self._limits = self._compute_step_limits()
+        return self._limits
+
+    def _compute_step_limits(self) -> tuple[float, float]:
+        """Compute the limits of :meth:`_step_limits` (collective)."""
         p = self.particles
         grav = self.g if self._gp is None else np.maximum(self._gp, self.g)
         speed = np.hypot(p.u, p.v) + np.sqrt(grav * p.h)
@@ -294,6 +301,7 @@ class MPMSolver:
 
     def _refresh(self) -> None:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
+        self._limits: tuple[float, float] | None = None
         p, g = self.particles, self.grid
         self._basis = b = Basis(p.cell, *gimp_weights(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx,
                                                        g.ny, g.dx, g.dy))
