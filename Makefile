@@ -53,7 +53,7 @@ bench: setup
 		--set 'initial.depth=1 + sqrt(maximum(25 - (x-25)**2 - (y-25)**2, 0))' \
 		--out docs/step_cost_dampm.md
 	@if [ -f "$${FEM_RUNOUT_DATA:-../shared/data}/avaKot/avaKot.asc" ]; then \
-		$(PY) -m fem_runout.bench footprint --methods tg2 mpm --out docs/performance.md; \
+		$(PY) -m fem_runout.bench footprint --out docs/performance.md; \
 	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; fi
 
 clean:

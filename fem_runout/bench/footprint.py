@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fem_runout.methods import method_names
+
 __all__ = ["HELP", "add_arguments", "main", "pad_ascii_grid"]
 
 HELP = "wall time of a case on its DEM and on a 4x larger padded DEM (active-set check)"
@@ -38,7 +40,7 @@ KEYS = ("runout_length", "affected_area", "peak_depth_max", "steps", "t_end")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's options."""
     parser.add_argument("--case", type=Path, default=ROOT / "cases" / "avakot.yaml")
-    parser.add_argument("--methods", nargs="+", default=["tg2", "mpm"])
+    parser.add_argument("--methods", nargs="+", default=method_names(), choices=method_names())
     parser.add_argument("--ranks", type=int, default=1)
     parser.add_argument("--pad", type=float, default=2.0,
                         help="linear size factor of the padded DEM (2: 4x the area)")
