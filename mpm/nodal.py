@@ -58,14 +58,27 @@ class NodalGrid:
             self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.SUM)
         return local
 
-    def exact_sum(self, folds: np.ndarray) -> np.ndarray:
-        """Sum two-fold partial sums (..., 2) over the ranks, then the folds (collective).
+    def exact_sum(self, folds: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
+        """Sum two-fold partial sums (n_nodes, ..., 2) over the ranks, then the folds (collective).
 
         The folds' sums are exact (:mod:`mpm.exact_sum`), so the result has the same bits
         whatever the split of the particles between ranks and their order.
+
+        Args:
+            folds: Per-rank partial sums on the global node array.
+            nodes: The nodes this rank's contributions went to (any shape), or None. With
+                it, only the range of node indices some rank wrote is exchanged (the rest
+                is zero on every rank): the same bits, a message of the flow's size.
         """
         if self.comm.size > 1:
-            self.comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
+            lo, hi = 0, folds.shape[0]
+            if nodes is not None:
+                span = np.array([-int(nodes.min()), int(nodes.max()) + 1] if nodes.size
+                                else [-folds.shape[0], 0], dtype=np.int64)
+                self.comm.Allreduce(MPI.IN_PLACE, span, op=MPI.MAX)
+                lo, hi = -int(span[0]), int(span[1])
+            if hi > lo:
+                self.comm.Allreduce(MPI.IN_PLACE, folds[lo:hi], op=MPI.SUM)
         return folds[..., 0] + folds[..., 1]
 
     def to_global(self, values: np.ndarray) -> np.ndarray:

@@ -251,7 +251,7 @@ class MPMSolver:
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
         mom = self.nodal.exact_sum(p2g_momentum(b.nodes, b.N, mass, p.u, p.v,
-                                                self.nodal.n_nodes, ext))
+                                                self.nodal.n_nodes, ext), b.nodes)
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
         vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
@@ -311,7 +311,8 @@ class MPMSolver:
                          self.comm)
         self._nodal = self.nodal.exact_sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0],
                                                body[1], tensor[0], tensor[1], tensor[2],
-                                               p.area, p.volume, self.nodal.n_nodes, ext))
+                                               p.area, p.volume, self.nodal.n_nodes, ext),
+                                           b.nodes)
         self._h = h = self.projector.project(self._nodal[:, 6:7])[:, 0]
         mass = self._nodal[:, 0]
         safe = np.where(mass > 0.0, mass, 1.0)
