@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["cell_slots", "gather", "gather_on", "gather_total", "sources", "total", "total_on"]
+__all__ = ["cell_slots", "gather_on", "gather_total", "sources", "total_on"]
 
 
 def cell_slots(xc: np.ndarray) -> np.ndarray:
@@ -40,14 +40,6 @@ def cell_slots(xc: np.ndarray) -> np.ndarray:
     return slot
 
 
-@numba.njit(cache=True)
-def total(buf, out):
-    """``out[i, c] = ((buf[i,0,c] + buf[i,1,c]) + buf[i,2,c]) + buf[i,3,c]``."""
-    for i in range(buf.shape[0]):
-        for c in range(buf.shape[2]):
-            out[i, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]
-
-
 def sources(cells: np.ndarray, slot: np.ndarray, n_nodes: int) -> np.ndarray:
     """``src[i, s]`` = flat index ``4 K + a`` of the cell node filling slot ``s`` of node ``i``.
 
@@ -59,18 +51,8 @@ def sources(cells: np.ndarray, slot: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def gather(src, flat, buf):
-    """``buf[i, s, c] = flat[src[i, s], c]`` (0 where ``src`` is -1): the slots, one pass."""
-    for i in range(src.shape[0]):
-        for s in range(4):
-            j = src[i, s]
-            for c in range(flat.shape[1]):
-                buf[i, s, c] = flat[j, c] if j >= 0 else 0.0
-
-
-@numba.njit(cache=True)
 def gather_total(src, flat, out):
-    """:func:`gather` then :func:`total` without the buffer (one rank).
+    """:func:`gather_on` then :func:`total_on` without the buffer (one rank).
 
     ``out[k]`` from the slots ``src[k]``: all nodes, or the rows of a subset
     (:mod:`fem_runout.active`).
@@ -86,7 +68,7 @@ def gather_total(src, flat, out):
 
 @numba.njit(cache=True)
 def gather_on(src, flat, nodes, buf):
-    """:func:`gather` on the rows ``src[k]`` of ``nodes[k]``: ``buf[nodes[k]]``."""
+    """``buf[nodes[k], s, c] = flat[src[k, s], c]`` (0 where ``src`` is -1): the slots."""
     for k in range(nodes.shape[0]):
         i = nodes[k]
         for s in range(4):
@@ -97,7 +79,7 @@ def gather_on(src, flat, nodes, buf):
 
 @numba.njit(cache=True)
 def total_on(buf, nodes, out):
-    """:func:`total` of ``buf[nodes[k]]`` into compact rows ``out[k]``."""
+    """``out[k, c] = ((b[0, c] + b[1, c]) + b[2, c]) + b[3, c]`` for ``b = buf[nodes[k]]``."""
     for k in range(nodes.shape[0]):
         i = nodes[k]
         for c in range(buf.shape[2]):

@@ -115,10 +115,11 @@ class Discretization:
         else:
             vec = self._vector(4 * bs)
             buf = vec.array.reshape(nn, 4, bs)
-            cellsum.gather(src, flat, buf)
+            every = self.__dict__.setdefault("_every_node", np.arange(nn))
+            cellsum.gather_on(src, flat, every, buf)
             vec.scatter_reverse(la.InsertMode.add)  # each slot has one non-zero: exact
             vec.scatter_forward()
-            cellsum.total(buf, out)
+            cellsum.total_on(buf, every, out)
         return out[:, 0] if contrib.ndim == 2 else out
 
     def update_ghosts(self, values: np.ndarray) -> None:

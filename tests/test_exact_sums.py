@@ -25,8 +25,9 @@ def _cell_sum(cells, slot, contrib, n_nodes):
     direct, out = np.empty((n_nodes, 1)), np.empty((n_nodes, 1))
     cellsum.gather_total(src, flat, direct)
     buf = np.empty((n_nodes, 4, 1))
-    cellsum.gather(src, flat, buf)
-    cellsum.total(buf, out)
+    every = np.arange(n_nodes)
+    cellsum.gather_on(src, flat, every, buf)
+    cellsum.total_on(buf, every, out)
     assert np.array_equal(direct, out)
     return out[:, 0]
 
