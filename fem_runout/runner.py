@@ -15,6 +15,7 @@ import numpy as np
 
 from fem_runout.callbacks import Callback, StepInfo
 from fem_runout.errors import SimulationError
+from fem_runout.exact_sum import exact_total
 from fem_runout.solver_api import Solver
 
 
@@ -54,21 +55,26 @@ def max_speed(solver: Solver, depth: float) -> float:
 def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, float]:
     """Largest speed and (if ``energy``) ``Σ M |q|² / h`` over nodes deeper than ``depth``.
 
-    The second value is twice the kinetic energy divided by the density (0 if not asked).
-    Collective: one max reduction, plus one sum reduction with ``energy``.
+    The second value is twice the kinetic energy divided by the density (0 if not asked),
+    summed exactly (:func:`~fem_runout.exact_sum.exact_total`): the rest criterion compares
+    it with a fraction of its peak, and a sum with the bits of the partition would stop the
+    run one step earlier or later on another rank count. Collective: one max reduction,
+    plus one sum reduction with ``energy``.
     """
     from mpi4py import MPI
 
-    n = solver.V.dofmap.index_map.size_local
+    imap = solver.V.dofmap.index_map
+    n = imap.size_local
     h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
     wet = h > depth
     q2 = hu[wet] ** 2 + hv[wet] ** 2
-    speed = float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0
-    speed = float(solver.comm.allreduce(speed, op=MPI.MAX))
+    terms = np.asarray(solver.lumped_mass[:n])[wet] * q2 / h[wet] if energy else q2[:0]
+    local = np.array([float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0,
+                      float(np.max(terms, initial=0.0))])
+    solver.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
     if not energy:
-        return speed, 0.0
-    local = float(np.sum(np.asarray(solver.lumped_mass[:n])[wet] * q2 / h[wet]))
-    return speed, float(solver.comm.allreduce(local, op=MPI.SUM))
+        return float(local[0]), 0.0
+    return float(local[0]), exact_total(terms, float(local[1]), imap.size_global, solver.comm)
 
 
 class Runner:

@@ -8,7 +8,7 @@ from mpi4py import MPI
 from fem_runout.config import Case
 from fem_runout.problem import build_problem
 from mpm.grid import ParticleGrid
-from mpm.migrate import migrate
+from mpm.migrate import balanced_destinations, migrate
 from mpm.particles import seed_particles
 from mpm.solver import MPMSolver
 
@@ -43,7 +43,7 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     num = case.numerics
     particles = seed_particles(grid, init["h"], *pb.velocity, num.particles_per_direction,
                                layout, num.dry_tolerance)
-    particles, _ = migrate(grid, particles)
+    particles, _ = migrate(grid, particles, balanced_destinations(grid, particles))
     return MPMSolver(disc, grid, particles, init["z"], case.material.density, pb.gravity,
                      pb.friction, pb.rheology, still, num.flip, num.particles_per_direction,
                      pb.thin_depth, pb.slope)

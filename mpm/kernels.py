@@ -20,7 +20,7 @@ P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
 
 @numba.njit(cache=True, inline="always")
 def _deposit(out, i, c, x, ext):
-    """Add ``x`` to node ``i``, column ``c`` in two folds (see :mod:`mpm.exact_sum`)."""
+    """Add ``x`` to node ``i``, column ``c`` in two folds (see :mod:`fem_runout.exact_sum`)."""
     hi = (x + ext[c, 0]) - ext[c, 0]
     out[i, c, 0] += hi
     x -= hi
@@ -46,7 +46,8 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, n
         area: ``A_p`` [m²].
         volume: ``V_p`` [m³].
         n_nodes: Number of nodes.
-        ext: (7, 2) extractors of the two folds per column (:func:`mpm.exact_sum.extractors`).
+        ext: (7, 2) extractors of the two folds per column
+            (:func:`fem_runout.exact_sum.extractors`).
 
     Returns:
         (n_nodes, 7, 2) fold sums in the order of :data:`P2G_COLUMNS`; their sum over ranks

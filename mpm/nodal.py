@@ -61,7 +61,7 @@ class NodalGrid:
     def exact_sum(self, folds: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
         """Sum two-fold partial sums (n_nodes, ..., 2) over the ranks, then the folds (collective).
 
-        The folds' sums are exact (:mod:`mpm.exact_sum`), so the result has the same bits
+        The folds' sums are exact (:mod:`fem_runout.exact_sum`), so the result has the same bits
         whatever the split of the particles between ranks and their order.
 
         Args:

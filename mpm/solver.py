@@ -16,8 +16,8 @@ previous step):
    ``h_p /= 1 + tr Δε_p`` (eq. 42), stress ``σ_p = 2 μ_eff D_p`` (eqs. 3, 41; USL: updated last);
    positions ``x_p += Δt v_p^{k+1}`` (eq. 39 with the updated velocity, cell-local);
 5. particles leaving through open sides are removed (their volume counted as outflow), the
-   others migrate to the rank owning their cell; P2G of the new state; projection of ``h, hu,
-   hv`` onto Q1 for the outputs (:mod:`mpm.projection`).
+   others are rebalanced over the ranks (strips of rows, :mod:`mpm.migrate`); P2G of the new
+   state; projection of ``h, hu, hv`` onto Q1 for the outputs (:mod:`mpm.projection`).
 
 Forces (eq. 34): body ``-m_p g ∇Z(x_p) N_i`` and effective stress ``-V_p σ^∇_p ∇N_i`` with
 ``σ^∇ = σ - ½ ρ g h I`` (eq. 26). With a still-water depth ``H`` (a flat initial free surface)
@@ -31,16 +31,16 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from fem_runout.exact_sum import extractors, fold_extractors
 from fem_runout.mesh import Discretization, zero_wall_normal
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
-from mpm.exact_sum import extractors
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
 from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
-from mpm.migrate import migrate
+from mpm.migrate import balanced_destinations, migrate
 from mpm.nodal import NodalGrid
 from mpm.particles import Particles
 from mpm.projection import GridProjector
@@ -180,7 +180,8 @@ class MPMSolver:
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
         self.particles = self.splitter.split(self.particles)
-        self.particles, self.sent = migrate(self.grid, self.particles)
+        self.particles, self.sent = migrate(self.grid, self.particles,
+                                            balanced_destinations(self.grid, self.particles))
         self._refresh()
 
     def snapshot(self) -> tuple[Particles, float]:
@@ -307,8 +308,8 @@ class MPMSolver:
                                                        g.ny, g.dx, g.dy))
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
-        ext = extractors(_p2g_bounds(b, mass, p, body, tensor), self.splitter.next_id,
-                         self.comm)
+        ext = fold_extractors(p2g_bounds(b, mass, p, body, tensor, self.comm),
+                              self.splitter.next_id)
         self._nodal = self.nodal.exact_sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0],
                                                body[1], tensor[0], tensor[1], tensor[2],
                                                p.area, p.volume, self.nodal.n_nodes, ext),
@@ -362,10 +363,18 @@ def _amax(values: np.ndarray) -> float:
     return float(np.max(np.abs(values), initial=0.0))
 
 
-def _p2g_bounds(b: Basis, mass: np.ndarray, p: Particles, body, tensor) -> list[float]:
-    """Bounds of any P2G contribution per column (weights <= 1, gradients <= max |dN|)."""
-    grad = _amax(b.dN)
-    sxx, syy, sxy = (_amax(t) for t in tensor)
-    return [_amax(mass), _amax(mass * p.u), _amax(mass * p.v),
-            _amax(body[0]) + (sxx + sxy) * grad, _amax(body[1]) + (sxy + syy) * grad,
-            _amax(p.area), _amax(p.volume)]
+def p2g_bounds(b: Basis, mass: np.ndarray, p: Particles, body, tensor,
+               comm: MPI.Comm) -> np.ndarray:
+    """Global bounds of any P2G contribution per column (collective: one max reduction).
+
+    Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
+    ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
+    depend on which rank holds which particle, and so would the exact sums' folds.
+    """
+    local = np.array([_amax(mass), _amax(mass * p.u), _amax(mass * p.v), _amax(body[0]),
+                      _amax(body[1]), *(_amax(t) for t in tensor), _amax(b.dN), _amax(p.area),
+                      _amax(p.volume)])
+    glob = np.nan_to_num(local, nan=np.inf, posinf=1e300)
+    comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
+    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob
+    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume])

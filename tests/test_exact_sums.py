@@ -1,6 +1,6 @@
 """Order-independent sums (issue 13): the result has the same bits in any order and split.
 
-``fem_runout.cellsum`` (TG2-PC's nodal sums of cell contributions) and ``mpm.exact_sum``
+``fem_runout.cellsum`` (TG2-PC's nodal sums of cell contributions) and ``fem_runout.exact_sum``
 (DAMPM's particle-to-grid sums) are what make 1, 2 and 3 ranks give the same bits; here the
 order and the split between "ranks" are permuted serially, and the sums are compared with a
 plain sum (accuracy).
@@ -11,8 +11,8 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout import cellsum
+from fem_runout.exact_sum import extractors
 from fem_runout.mesh import build_discretization
-from mpm.exact_sum import extractors
 from mpm.kernels import p2g_momentum
 
 RNG = np.random.default_rng(13)
