@@ -11,13 +11,44 @@ local view ``global[node_index]``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from mpi4py import MPI
 
 from fem_runout.mesh import Discretization, Side
 from mpm.gimp import structured_nodes
 
-__all__ = ["NodalGrid"]
+__all__ = ["GridSums", "NodalGrid"]
+
+
+@dataclass
+class GridSums:
+    """P2G sums on the nodes that carry mass (the only nodes the nodal update touches).
+
+    Attributes:
+        act: Sorted global indices of the nodes with ``mass > 0``.
+        g: (len(act), k) sums at those nodes (columns of :data:`mpm.kernels.P2G_COLUMNS`).
+        n_nodes: Size of the global node array.
+    """
+
+    act: np.ndarray
+    g: np.ndarray
+    n_nodes: int
+
+    def full(self, values: np.ndarray) -> np.ndarray:
+        """Global array with ``values`` at :attr:`act`, zero elsewhere."""
+        out = np.zeros(self.n_nodes)
+        out[self.act] = values
+        return out
+
+    def locate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions in :attr:`act` of the global ``nodes`` that carry mass: ``(pos, which)``."""
+        pos = np.searchsorted(self.act, nodes)
+        inside = pos < self.act.size
+        hit = np.zeros(nodes.size, dtype=bool)
+        hit[inside] = self.act[pos[inside]] == nodes[inside]
+        return pos[hit], np.flatnonzero(hit)
 
 
 class NodalGrid:
@@ -80,6 +111,18 @@ class NodalGrid:
             if hi > lo:
                 self.comm.Allreduce(MPI.IN_PLACE, folds[lo:hi], op=MPI.SUM)
         return folds[..., 0] + folds[..., 1]
+
+    def window_sums(self, folds: np.ndarray, offset: int) -> GridSums:
+        """Exact sums (collective) of a window's folds, kept on the nodes with mass.
+
+        Args:
+            folds: (n, k, 2) fold sums of the nodes ``offset .. offset + n - 1``, the same
+                window on every rank.
+            offset: First node of the window.
+        """
+        sums = self.exact_sum(folds)
+        inner = np.flatnonzero(sums[:, 0] > 0.0)
+        return GridSums(inner + offset, sums[inner], self.n_nodes)
 
     def to_global(self, values: np.ndarray) -> np.ndarray:
         """Global array of a local nodal array (owned entries; collective)."""

@@ -32,14 +32,22 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from fem_runout.exact_sum import extractors, fold_extractors
-from fem_runout.mesh import Discretization, zero_wall_normal
+from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
-from mpm.kernels import g2p, interpolate, interpolate_gradient, p2g, p2g_momentum
+from mpm.kernels import (
+    g2p,
+    g2p_flip,
+    g2p_gradient,
+    interpolate,
+    interpolate_gradient,
+    p2g,
+    p2g_momentum,
+)
 from mpm.migrate import balanced_destinations, migrate
 from mpm.nodal import NodalGrid
 from mpm.particles import Particles
@@ -162,20 +170,16 @@ class MPMSolver:
         scale = self._pic_scale() if self.flip > 0.0 else 1.0
         vx, vy = self._nodal_velocity(dt)
         p, b = self.particles, self._basis
-        u, v, _ = g2p(b.nodes, b.N, b.dN, vx, vy)
         if self.flip > 0.0:  # FLIP: the particles keep their velocity plus the nodal change
-            mass = self._nodal[:, 0]
-            safe = np.where(mass > 0.0, mass, 1.0)
-            du, dv, _ = g2p(b.nodes, b.N, b.dN, vx - self._nodal[:, 1] / safe,
-                            vy - self._nodal[:, 2] / safe)
-            stopped = ((mass > 0.0) & (vx == 0.0) & (vy == 0.0)).astype(float)
-            near = interpolate(b.nodes, b.N, stopped)
-            pic = (1.0 - self.flip) * scale
-            flip = np.where(near > 0.0, 0.0, 1.0 - pic)  # PIC next to nodes friction stopped
-            u = flip * (p.u + du) + (1.0 - flip) * u
-            v = flip * (p.v + dv) + (1.0 - flip) * v
-        p.u, p.v = u, v
-        _, _, grad = g2p(b.nodes, b.N, b.dN, *self._remapped_velocity())
+            sums = self._sums
+            mass = sums.g[:, 0]
+            stopped = sums.full(((vx[sums.act] == 0.0) & (vy[sums.act] == 0.0)).astype(float))
+            keep = 1.0 - (1.0 - self.flip) * scale  # PIC next to nodes friction stopped
+            p.u, p.v = g2p_flip(b.nodes, b.N, vx, vy, sums.full(sums.g[:, 1] / mass),
+                                sums.full(sums.g[:, 2] / mass), stopped, p.u, p.v, keep)
+        else:
+            p.u, p.v, _ = g2p(b.nodes, b.N, b.dN, vx, vy)
+        grad = g2p_gradient(b.nodes, b.dN, *self._remapped_velocity())
         self.update_depth_and_stress(dt, grad)
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
@@ -205,23 +209,30 @@ class MPMSolver:
 
     # -- steps -----------------------------------------------------------------------------
     def _nodal_velocity(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Nodal velocity at t + dt (eqs. 35-37), with implicit friction and walls."""
-        g = self._nodal
+        """Nodal velocity at t + dt (eqs. 35-37), with implicit friction and walls.
+
+        Computed on the nodes with mass (:class:`mpm.nodal.GridSums`); zero elsewhere.
+        """
+        sums = self._sums
+        g = sums.g
         mass = g[:, 0]
-        active = mass > 0.0
-        safe = np.where(active, mass, 1.0)
         fx, fy = self._open_side_pressure(g[:, 3], g[:, 4])
-        vx = np.where(active, (g[:, 1] + dt * fx) / safe, 0.0)
-        vy = np.where(active, (g[:, 2] + dt * fy) / safe, 0.0)
-        zero_wall_normal(self.walls, vx, vy)  # the wall reaction first: friction acts along it
+        vx, vy = (g[:, 1] + dt * fx) / mass, (g[:, 2] + dt * fy) / mass
+        self._zero_walls(vx, vy)  # the wall reaction first: friction acts along it
         if self.friction is not None:
-            h = np.where(active, mass / (self.rho * np.where(active, g[:, 5], 1.0)), 0.0)
-            bed = None if self.slope_g is None else self.slope_g.frame(vx, vy)
-            qx, qy = self.friction.implicit_update(h, h * g[:, 1] / safe, h * g[:, 2] / safe,
+            h = mass / (self.rho * g[:, 5])
+            bed = None if self.slope_g is None else self.slope_g.take(sums.act).frame(vx, vy)
+            qx, qy = self.friction.implicit_update(h, h * g[:, 1] / mass, h * g[:, 2] / mass,
                                                    h * vx, h * vy, dt, bed)
             hs = np.where(h > 0, h, 1.0)
             vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
-        return vx, vy
+        return sums.full(vx), sums.full(vy)
+
+    def _zero_walls(self, vx: np.ndarray, vy: np.ndarray) -> None:
+        """Zero the wall-normal velocity at the walls' nodes with mass (in place)."""
+        for side in self.walls:
+            pos, _ = self._sums.locate(side.nodes)
+            (vx if side.normal[0] != 0.0 else vy)[pos] = 0.0
 
     def _open_side_pressure(self, fx: np.ndarray, fy: np.ndarray) -> tuple[np.ndarray, ...]:
         """Add the pressure of the fluid beyond open sides: a transmissive boundary.
@@ -230,15 +241,17 @@ class MPMSolver:
         boundary node's: ``-½ ρ g (h_i² - H_i²) ∫φ_i ds n``. The seed's zero traction makes an
         open side a free edge (a reservoir touching it drains into vacuum); with this term an
         open side lets the flow out like TG2-PC's outflow boundary and holds a layer at rest.
+        ``fx, fy`` are at the nodes with mass.
         """
         fx, fy = fx.copy(), fy.copy()
-        h = self._h
         for side in self.open_sides:
-            hb = h[side.nodes]
-            big = 0.0 if self.still_g is None else self.still_g[side.nodes]
-            push = 0.5 * self.rho * self.g * (hb * hb - big * big) * side.weight
-            fx[side.nodes] -= push * side.normal[0]
-            fy[side.nodes] -= push * side.normal[1]
+            pos, which = self._sums.locate(side.nodes)
+            nodes = side.nodes[which]
+            hb = self._h[nodes]
+            big = 0.0 if self.still_g is None else self.still_g[nodes]
+            push = 0.5 * self.rho * self.g * (hb * hb - big * big) * side.weight[which]
+            fx[pos] -= push * side.normal[0]
+            fy[pos] -= push * side.normal[1]
         return fx, fy
 
     def _remapped_velocity(self) -> tuple[np.ndarray, np.ndarray]:
@@ -247,18 +260,17 @@ class MPMSolver:
         A mass-weighted average of particle velocities, so it stays bounded at nodes that
         carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
         """
-        p, b = self.particles, self._basis
+        p, b, sums = self.particles, self._basis, self._sums
         mass = self.rho * p.volume
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
-        mom = self.nodal.exact_sum(p2g_momentum(b.nodes, b.N, mass, p.u, p.v,
-                                                self.nodal.n_nodes, ext), b.nodes)
-        mass = self._nodal[:, 0]
-        safe = np.where(mass > 0.0, mass, 1.0)
-        vx = np.where(mass > 0, mom[:, 0] / safe, 0.0)
-        vy = np.where(mass > 0, mom[:, 1] / safe, 0.0)
-        zero_wall_normal(self.walls, vx, vy)
-        return vx, vy
+        lo, hi = self._window
+        mom = self.nodal.exact_sum(p2g_momentum(b.nodes, b.N, mass, p.u, p.v, lo, hi - lo,
+                                                ext))[sums.act - lo]
+        mass = sums.g[:, 0]
+        vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
+        self._zero_walls(vx, vy)
+        return sums.full(vx), sums.full(vy)
 
     def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
         """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""
@@ -308,18 +320,16 @@ class MPMSolver:
                                                        g.ny, g.dx, g.dy))
         body, tensor = self._forces(b)
         mass = self.rho * p.volume
-        ext = fold_extractors(p2g_bounds(b, mass, p, body, tensor, self.comm),
-                              self.splitter.next_id)
-        self._nodal = self.nodal.exact_sum(p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0],
-                                               body[1], tensor[0], tensor[1], tensor[2],
-                                               p.area, p.volume, self.nodal.n_nodes, ext),
-                                           b.nodes)
-        self._h = h = self.projector.project(self._nodal[:, 6:7])[:, 0]
-        mass = self._nodal[:, 0]
-        safe = np.where(mass > 0.0, mass, 1.0)
+        bounds, self._window = p2g_bounds(b, mass, p, body, tensor, self.comm)
+        ext = fold_extractors(bounds, self.splitter.next_id)
+        lo, hi = self._window
+        self._sums = sums = self.nodal.window_sums(
+            p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
+                tensor[2], p.area, p.volume, lo, hi - lo, ext), lo)
+        self._h = h = self.projector.project(sums.full(sums.g[:, 6])[:, None])[:, 0]
         self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
-            q = np.where(mass > 0.0, h * self._nodal[:, col] / safe, 0.0)
+            q = sums.full(h[sums.act] * sums.g[:, col] / sums.g[:, 0])
             self.fields[name].x.array[:] = self.nodal.to_local(q)
 
     def _forces(self, b: Basis) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
@@ -364,17 +374,22 @@ def _amax(values: np.ndarray) -> float:
 
 
 def p2g_bounds(b: Basis, mass: np.ndarray, p: Particles, body, tensor,
-               comm: MPI.Comm) -> np.ndarray:
-    """Global bounds of any P2G contribution per column (collective: one max reduction).
+               comm: MPI.Comm) -> tuple[np.ndarray, tuple[int, int]]:
+    """Global bounds of any P2G contribution per column and the nodes written (collective).
 
     Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
     ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
-    depend on which rank holds which particle, and so would the exact sums' folds.
+    depend on which rank holds which particle, and so would the exact sums' folds. One max
+    reduction gives the bounds and the window ``[lo, hi)`` of node indices any rank writes.
     """
+    span = (-float(b.nodes.min()), float(b.nodes.max()) + 1.0) if b.nodes.size else (
+        -np.inf, -np.inf)
     local = np.array([_amax(mass), _amax(mass * p.u), _amax(mass * p.v), _amax(body[0]),
                       _amax(body[1]), *(_amax(t) for t in tensor), _amax(b.dN), _amax(p.area),
                       _amax(p.volume)])
-    glob = np.nan_to_num(local, nan=np.inf, posinf=1e300)
+    glob = np.concatenate([np.nan_to_num(local, nan=np.inf, posinf=1e300), span])
     comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
-    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob
-    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume])
+    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume, lo, hi = glob
+    window = (int(-lo), int(hi)) if np.isfinite(hi) else (0, 0)
+    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area,
+                     volume]), window

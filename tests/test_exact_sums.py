@@ -65,7 +65,7 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
     ext = extractors(bounds, n_p, MPI.COMM_SELF)
 
     def total(idx_groups):  # "ranks": sum each group's folds, then the groups
-        folds = sum(p2g_momentum(nodes[g], weights[g], mass[g], u[g], v[g], n_nodes, ext)
+        folds = sum(p2g_momentum(nodes[g], weights[g], mass[g], u[g], v[g], 0, n_nodes, ext)
                     for g in idx_groups)
         return folds[..., 0] + folds[..., 1]
 

@@ -47,10 +47,10 @@ def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
     tensor[0][1] = 70.0  # ... the largest stress on the next one (another rank when split)
     dN = np.ones((n, 9, 2))
     basis = Basis(p.cell, np.zeros((n, 9), dtype=np.int64), np.ones((n, 9)), dN)
-    whole = p2g_bounds(basis, mass, p, body, tensor, MPI.COMM_SELF)
+    whole, window = p2g_bounds(basis, mass, p, body, tensor, MPI.COMM_SELF)
     k = _share(n)
-    part = p2g_bounds(Basis(p.cell[k], basis.nodes[k], basis.N[k], dN[k]), mass[k],
+    part, part_window = p2g_bounds(Basis(p.cell[k], basis.nodes[k], basis.N[k], dN[k]), mass[k],
                       p.select(k), tuple(b[k] for b in body), tuple(t[k] for t in tensor),
                       WORLD)
-    assert np.array_equal(part, whole)
+    assert np.array_equal(part, whole) and part_window == window == (0, 1)
     assert whole[3] == 50.0 + 70.0  # body and stress bounds add up, whoever holds them
