@@ -13,7 +13,8 @@ They are blended per cell as in flux-corrected transport: ``h = h^L + M_L^{-1} �
 with the element antidiffusion ``f_K = (M_L^K - M_C^K) h^H`` (``Σ_i f_{K,i} = 0``, so any
 ``α_K`` conserves ``Σ_i M_i h_i = Σ_p V_p`` exactly) and ``α_K = 1`` except in the cells
 touching a node that would get a negative depth, where ``α_K = 0`` (repeated until no node is
-negative). Further columns (if any) use the same ``α_K``. The solver projects ``h`` this way
+negative; a cell switched off subtracts its ``f_K`` again, so a pass costs only the cells it
+switches off). Further columns (if any) use the same ``α_K``. The solver projects ``h`` this way
 and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ m_p v_p S_ip / M_i``
 (bounded by the particle velocities, so the output speed never exceeds the particles').
 
@@ -66,31 +67,49 @@ def tridiagonal_mass_solve(rhs, first_end=True, last_end=True):
 
 
 @numba.njit(cache=True)
-def _cells_hit(cells, bad, alpha):
-    """Cells with ``α_K > 0`` that touch a bad node."""
-    hit = np.zeros(cells.shape[0], dtype=np.bool_)
-    for c in range(cells.shape[0]):
-        if alpha[c] > 0.0:
-            for i in range(4):
-                if bad[cells[c, i]]:
-                    hit[c] = True
-                    break
-    return hit
+def _fct_blend(cells, matrix, low, high, mass, tol):
+    """``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``α_K = 0`` on cells touching a negative node.
 
+    The element antidiffusion ``f_K = (M_L^K - M_C^K) high`` is computed once; cells are
+    switched off (their ``f_K`` subtracted again) while a node's first column is below
+    ``-tol``, so each pass costs only the cells it switches off.
 
-@numba.njit(cache=True)
-def _antidiffusion(cells, matrix, high, alpha, n_nodes):
-    """``Σ_K α_K (M_L^K - M_C^K) high`` scattered to the nodes; (n_nodes, k)."""
-    out = np.zeros((n_nodes, high.shape[1]))
-    for c in range(cells.shape[0]):
-        if alpha[c] == 0.0:
-            continue
+    Returns:
+        ``(h, passes)``: (n, k) blended fields and the number of passes.
+    """
+    n_cells, k = cells.shape[0], low.shape[1]
+    f = np.zeros((n_cells, 4, k))
+    acc = np.zeros(low.shape)
+    for c in range(n_cells):
         for i in range(4):
             for j in range(4):
-                w = alpha[c] * matrix[i, j]
-                for k in range(high.shape[1]):
-                    out[cells[c, i], k] += w * high[cells[c, j], k]
-    return out
+                for m in range(k):
+                    f[c, i, m] += matrix[i, j] * high[cells[c, j], m]
+            for m in range(k):
+                acc[cells[c, i], m] += f[c, i, m]
+    alpha = np.ones(n_cells, dtype=np.bool_)
+    passes = 0
+    while True:
+        passes += 1
+        bad = np.empty(low.shape[0], dtype=np.bool_)
+        for a in range(low.shape[0]):
+            bad[a] = low[a, 0] + acc[a, 0] / mass[a] < -tol
+        hit = 0
+        for c in range(n_cells):
+            if alpha[c] and (bad[cells[c, 0]] or bad[cells[c, 1]] or bad[cells[c, 2]]
+                             or bad[cells[c, 3]]):
+                alpha[c] = False
+                hit += 1
+                for i in range(4):
+                    for m in range(k):
+                        acc[cells[c, i], m] -= f[c, i, m]
+        if hit == 0:
+            break
+    out = np.empty(low.shape)
+    for a in range(low.shape[0]):
+        for m in range(k):
+            out[a, m] = low[a, m] + acc[a, m] / mass[a]
+    return out, passes
 
 
 #: Nodes added around the nodes with particle sums when projecting on a window of the grid.
@@ -164,17 +183,8 @@ class GridProjector:
         mass = self.lumped_mass[index][:, None]
         low = sub / mass
         high = self.consistent(sub, window)
-        alpha = np.ones(cells.shape[0])
         tol = 1e-13 * float(np.abs(low[:, 0]).max(initial=0.0))
-        self.iterations = 0
-        while True:
-            self.iterations += 1
-            anti = _antidiffusion(cells, self.matrix, high, alpha, sub.shape[0])
-            res = low + anti / mass
-            hit = _cells_hit(cells, res[:, 0] < -tol, alpha)
-            if not hit.any():
-                break
-            alpha[hit] = 0.0
+        res, self.iterations = _fct_blend(cells, self.matrix, low, high, mass[:, 0], tol)
         res[:, 0] = np.maximum(res[:, 0], 0.0)
         out[index] = res
         return out

@@ -37,6 +37,7 @@ from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
+from mpm.forces import particle_forces, transfer_bounds
 from mpm.gimp import gimp_weights
 from mpm.grid import Basis, ParticleGrid
 from mpm.kernels import (
@@ -44,7 +45,6 @@ from mpm.kernels import (
     g2p_flip,
     g2p_gradient,
     interpolate,
-    interpolate_gradient,
     p2g,
     p2g_momentum,
 )
@@ -102,7 +102,8 @@ class MPMSolver:
         self.z_g = self.nodal.to_global(self.z)
         self.still_g = None if still_depth is None else self.nodal.to_global(still_depth)
         self.slope_g = None if slope is None else self._global_geometry(slope)
-        self._gp: np.ndarray | None = None  # G at the particles (slope form)
+        self._hess = np.zeros((0, 3)) if self.slope_g is None else self.slope_g.hess
+        self._still = np.zeros(0) if self.still_g is None else self.still_g
         self.projector = GridProjector(disc.cells, disc.spacing)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
@@ -146,10 +147,7 @@ class MPMSolver:
 
     def _compute_step_limits(self) -> tuple[float, float]:
         """Compute the limits of :meth:`_step_limits` (collective)."""
-        p = self.particles
-        grav = self.g if self._gp is None else np.maximum(self._gp, self.g)
-        speed = np.hypot(p.u, p.v) + np.sqrt(grav * p.h)
-        top = self.comm.allreduce(float(speed.max(initial=0.0)), op=MPI.MAX)
+        top = self.comm.allreduce(self._speed, op=MPI.MAX)  # from particle_forces
         dx = min(self.disc.spacing)
         dt = COURANT * dx / top if top > 0 else np.inf
         slope = self.comm.allreduce(self._slope, op=MPI.MAX)
@@ -318,47 +316,22 @@ class MPMSolver:
         p, g = self.particles, self.grid
         self._basis = b = Basis(p.cell, *gimp_weights(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx,
                                                        g.ny, g.dx, g.dy))
-        body, tensor = self._forces(b)
+        forces, self._gp, self._slope, self._speed = particle_forces(
+            b.nodes, b.N, b.dN, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
+            p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
-        bounds, self._window = p2g_bounds(b, mass, p, body, tensor, self.comm)
+        bounds, self._window = p2g_bounds(
+            transfer_bounds(b.nodes, b.dN, mass, p.u, p.v, forces, p.area, p.volume), self.comm)
         ext = fold_extractors(bounds, self.splitter.next_id)
         lo, hi = self._window
         self._sums = sums = self.nodal.window_sums(
-            p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, body[0], body[1], tensor[0], tensor[1],
-                tensor[2], p.area, p.volume, lo, hi - lo, ext), lo)
+            p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, *forces, p.area, p.volume, lo, hi - lo, ext),
+            lo)
         self._h = h = self.projector.project(sums.full(sums.g[:, 6])[:, None])[:, 0]
         self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
             q = sums.full(h[sums.act] * sums.g[:, col] / sums.g[:, 0])
             self.fields[name].x.array[:] = self.nodal.to_local(q)
-
-    def _forces(self, b: Basis) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, ...]]:
-        """Body force (× N_i) and force tensor ``-V_p σ^∇_p`` (× ∇N_i) per particle."""
-        p, rho, g = self.particles, self.rho, self.g
-        grad_z = interpolate_gradient(b.nodes, b.dN, self.z_g)
-        self._slope = float(np.hypot(grad_z[:, 0], grad_z[:, 1]).max(initial=0.0))
-        if self.slope_g is not None:  # slope form: G_p replaces g (physics/slope.py)
-            g = self._gp = self._particle_gravity(b, grad_z)
-        if self.still_g is None:
-            weight = rho * g * p.volume  # eq. 34: -m_p g ∇Z
-            pressure = 0.5 * rho * g * p.volume * p.h  # eq. 26: ½ ρ g h V_p
-        else:
-            big_h = interpolate(b.nodes, b.N, self.still_g)
-            weight = rho * g * p.area * (p.h - big_h)  # eq. 46: -ρ g (h - H) ∇Z
-            pressure = 0.5 * rho * g * p.area * (p.h * p.h - big_h * big_h)
-        body = (-weight * grad_z[:, 0], -weight * grad_z[:, 1])
-        tensor = (pressure - p.volume * p.sxx, pressure - p.volume * p.syy, -p.volume * p.sxy)
-        return body, tensor
-
-
-    def _particle_gravity(self, b: Basis, grad_z: np.ndarray) -> np.ndarray:
-        """``G_p = cos²θ_p max(g + u_p·H_p·u_p, 0)`` with the bed at the particle."""
-        p, hess = self.particles, self.slope_g.hess
-        hxx, hxy, hyy = (interpolate(b.nodes, b.N, np.ascontiguousarray(hess[:, k]))
-                         for k in range(3))
-        uhu = p.u * (hxx * p.u + hxy * p.v) + p.v * (hxy * p.u + hyy * p.v)
-        cos2 = 1.0 / (1.0 + grad_z[:, 0] ** 2 + grad_z[:, 1] ** 2)
-        return cos2 * np.maximum(self.g + uhu, 0.0)
 
     def _global_geometry(self, slope: SlopeGeometry) -> SlopeGeometry:
         """Return the geometry on the global node array (collective)."""
@@ -373,21 +346,19 @@ def _amax(values: np.ndarray) -> float:
     return float(np.max(np.abs(values), initial=0.0))
 
 
-def p2g_bounds(b: Basis, mass: np.ndarray, p: Particles, body, tensor,
-               comm: MPI.Comm) -> tuple[np.ndarray, tuple[int, int]]:
+def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, tuple[int, int]]:
     """Global bounds of any P2G contribution per column and the nodes written (collective).
 
     Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
     ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
     depend on which rank holds which particle, and so would the exact sums' folds. One max
     reduction gives the bounds and the window ``[lo, hi)`` of node indices any rank writes.
+
+    Args:
+        local: This rank's maxima from :func:`mpm.forces.transfer_bounds`.
+        comm: Communicator.
     """
-    span = (-float(b.nodes.min()), float(b.nodes.max()) + 1.0) if b.nodes.size else (
-        -np.inf, -np.inf)
-    local = np.array([_amax(mass), _amax(mass * p.u), _amax(mass * p.v), _amax(body[0]),
-                      _amax(body[1]), *(_amax(t) for t in tensor), _amax(b.dN), _amax(p.area),
-                      _amax(p.volume)])
-    glob = np.concatenate([np.nan_to_num(local, nan=np.inf, posinf=1e300), span])
+    glob = np.concatenate([np.nan_to_num(local[:11], nan=np.inf, posinf=1e300), local[11:]])
     comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
     m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume, lo, hi = glob
     window = (int(-lo), int(hi)) if np.isfinite(hi) else (0, 0)

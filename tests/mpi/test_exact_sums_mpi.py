@@ -13,8 +13,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.exact_sum import exact_total
-from mpm.grid import Basis
-from mpm.particles import FLOAT_FIELDS, Particles
+from mpm.forces import transfer_bounds
 from mpm.solver import p2g_bounds
 
 WORLD = MPI.COMM_WORLD
@@ -38,19 +37,19 @@ def test_exact_total_same_bits_on_any_split():
 def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
     n = 12
     rng = np.random.default_rng(3)
-    data = {k: rng.uniform(0.1, 1.0, n) for k in FLOAT_FIELDS}
-    p = Particles(**data, cell=np.zeros(n, dtype=np.int64), id=np.arange(n))
-    mass = p.volume.copy()
-    body = (np.zeros(n), np.zeros(n))
-    tensor = (np.zeros(n), np.zeros(n), np.zeros(n))
-    body[0][0] = 50.0  # the largest body force on one particle ...
-    tensor[0][1] = 70.0  # ... the largest stress on the next one (another rank when split)
+    mass, u, v, area, volume = (rng.uniform(0.1, 1.0, n) for _ in range(5))
+    forces = np.zeros((5, n))
+    forces[0, 0] = 50.0  # the largest body force on one particle ...
+    forces[2, 1] = 70.0  # ... the largest stress on the next one (another rank when split)
+    nodes = np.arange(9 * n, dtype=np.int64).reshape(n, 9)
     dN = np.ones((n, 9, 2))
-    basis = Basis(p.cell, np.zeros((n, 9), dtype=np.int64), np.ones((n, 9)), dN)
-    whole, window = p2g_bounds(basis, mass, p, body, tensor, MPI.COMM_SELF)
-    k = _share(n)
-    part, part_window = p2g_bounds(Basis(p.cell[k], basis.nodes[k], basis.N[k], dN[k]), mass[k],
-                      p.select(k), tuple(b[k] for b in body), tuple(t[k] for t in tensor),
-                      WORLD)
-    assert np.array_equal(part, whole) and part_window == window == (0, 1)
+
+    def bounds(k, comm):
+        return p2g_bounds(transfer_bounds(nodes[k], dN[k], mass[k], u[k], v[k],
+                                          np.ascontiguousarray(forces[:, k]), area[k],
+                                          volume[k]), comm)
+
+    whole, window = bounds(np.arange(n), MPI.COMM_SELF)
+    part, part_window = bounds(_share(n), WORLD)
+    assert np.array_equal(part, whole) and part_window == window == (0, 9 * n)
     assert whole[3] == 50.0 + 70.0  # body and stress bounds add up, whoever holds them

@@ -1,0 +1,119 @@
+"""The per-particle forces of one step in one pass (numba): seed eqs. 26, 34 and 46.
+
+:func:`particle_forces` interpolates the bed gradient (and, in the slope-consistent form, its
+Hessian) at the particles and returns the body force (× ``N_i``) and the force tensor
+``-V_p σ^∇_p`` (× ``∇N_i``) that :func:`mpm.kernels.p2g` scatters, with the bounds that the
+exact sums (:mod:`fem_runout.exact_sum`) and the step limit need. The arithmetic is the one
+of the former array expressions, in the same order (the same bits).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["particle_forces", "transfer_bounds"]
+
+
+@numba.njit(cache=True)
+def particle_forces(nodes, N, dN, z, hess, still, rho, g, volume, h, u, v, sxx, syy, sxy):
+    """Body force and force tensor per particle (seed eqs. 26, 34; eq. 46 with ``still``).
+
+    Args:
+        nodes: (n, k) node indices of each particle.
+        N: (n, k) weights.
+        dN: (n, k, 2) weight gradients.
+        z: Nodal elevation.
+        hess: (n_nodes, 3) nodal ``(Z_xx, Z_xy, Z_yy)`` for the slope-consistent form, where
+            ``G_p = cos²θ max(g + u·H·u, 0)`` replaces ``g``; (0, 3) for the seed's form.
+        still: Nodal still-water depth ``H`` (well-balanced eq. 46), or an empty array.
+        rho: Density [kg/m³].
+        g: Gravity [m/s²].
+        volume: ``V_p`` [m³].
+        h: Depth [m].
+        u: x-velocity [m/s].
+        v: y-velocity [m/s].
+        sxx: xx stress [Pa m].
+        syy: yy stress [Pa m].
+        sxy: xy stress [Pa m].
+
+    Returns:
+        ``(out, gp, slope, speed)``: (5, n) body x, body y and tensor xx, yy, xy; the
+        gravity ``G_p`` (``g`` in the seed's form); the largest bed slope ``|∇Z|`` and the
+        largest wave speed ``|v_p| + sqrt(max(G_p, g) h_p)`` over the particles.
+    """
+    n = nodes.shape[0]
+    out = np.empty((5, n))
+    gp = np.empty(n)
+    slope_form, wb = hess.shape[0] > 0, still.size > 0
+    slope, speed = 0.0, 0.0
+    for p in range(n):
+        gx, gy = 0.0, 0.0
+        for k in range(nodes.shape[1]):
+            gx += dN[p, k, 0] * z[nodes[p, k]]
+            gy += dN[p, k, 1] * z[nodes[p, k]]
+        slope = max(slope, math.hypot(gx, gy))
+        grav = g
+        if slope_form:
+            hxx, hxy, hyy = 0.0, 0.0, 0.0
+            for k in range(nodes.shape[1]):
+                hxx += N[p, k] * hess[nodes[p, k], 0]
+                hxy += N[p, k] * hess[nodes[p, k], 1]
+                hyy += N[p, k] * hess[nodes[p, k], 2]
+            uhu = u[p] * (hxx * u[p] + hxy * v[p]) + v[p] * (hxy * u[p] + hyy * v[p])
+            cos2 = 1.0 / (1.0 + gx * gx + gy * gy)
+            grav = cos2 * max(g + uhu, 0.0)
+        gp[p] = grav
+        if wb:
+            big = 0.0
+            for k in range(nodes.shape[1]):
+                big += N[p, k] * still[nodes[p, k]]
+            area = volume[p] / h[p]
+            weight = rho * grav * area * (h[p] - big)  # eq. 46: -ρ g (h - H) ∇Z
+            pressure = 0.5 * rho * grav * area * (h[p] * h[p] - big * big)
+        else:
+            weight = rho * grav * volume[p]  # eq. 34: -m_p g ∇Z
+            pressure = 0.5 * rho * grav * volume[p] * h[p]  # eq. 26: ½ ρ g h V_p
+        out[0, p], out[1, p] = -weight * gx, -weight * gy
+        out[2, p] = pressure - volume[p] * sxx[p]
+        out[3, p] = pressure - volume[p] * syy[p]
+        out[4, p] = -volume[p] * sxy[p]
+        speed = max(speed, math.hypot(u[p], v[p]) + math.sqrt(max(grav, g) * h[p]))
+    return out, gp, slope, speed
+
+
+@numba.njit(cache=True, inline="always")
+def _bound(m, x):
+    """Return the running max of ``|x|``, infinity after a NaN (no NaN passes unseen)."""
+    a = abs(x)
+    if a != a:
+        return np.inf
+    return a if a > m else m
+
+
+@numba.njit(cache=True)
+def transfer_bounds(nodes, dN, mass, u, v, forces, area, volume):
+    """Per-rank maxima for :func:`mpm.solver.p2g_bounds`, one pass.
+
+    Returns:
+        (13,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|, |dN|,
+        |A|, |V|``, then ``-min(node)`` and ``max(node) + 1`` (``-inf`` with no particle).
+    """
+    b = np.zeros(13)
+    b[11], b[12] = -np.inf, -np.inf
+    for p in range(nodes.shape[0]):
+        b[0] = _bound(b[0], mass[p])
+        b[1] = _bound(b[1], mass[p] * u[p])
+        b[2] = _bound(b[2], mass[p] * v[p])
+        for c in range(5):
+            b[3 + c] = _bound(b[3 + c], forces[c, p])
+        for k in range(nodes.shape[1]):
+            b[8] = _bound(b[8], dN[p, k, 0])
+            b[8] = _bound(b[8], dN[p, k, 1])
+            b[11] = max(b[11], -float(nodes[p, k]))
+            b[12] = max(b[12], float(nodes[p, k]) + 1.0)
+        b[9] = _bound(b[9], area[p])
+        b[10] = _bound(b[10], volume[p])
+    return b
