@@ -4,7 +4,8 @@
 Hessian) at the particles and returns the body force (× ``N_i``) and the force tensor
 ``-V_p σ^∇_p`` (× ``∇N_i``) that :func:`mpm.kernels.p2g` scatters, with the bounds that the
 exact sums (:mod:`fem_runout.exact_sum`) and the step limit need. The arithmetic is the one
-of the former array expressions, in the same order (the same bits).
+of the former array expressions, in the same order, except that lengths are ``sqrt(x² + y²)``
+(``hypot`` cost 14 ns per call, 70 % of the pass).
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ def particle_forces(nodes, N, dN, z, hess, still, rho, g, volume, h, u, v, sxx, 
         for k in range(nodes.shape[1]):
             gx += dN[p, k, 0] * z[nodes[p, k]]
             gy += dN[p, k, 1] * z[nodes[p, k]]
-        slope = max(slope, math.hypot(gx, gy))
+        slope = max(slope, gx * gx + gy * gy)  # squared: one sqrt at the end
         grav = g
         if slope_form:
             hxx, hxy, hyy = 0.0, 0.0, 0.0
@@ -80,8 +81,8 @@ def particle_forces(nodes, N, dN, z, hess, still, rho, g, volume, h, u, v, sxx, 
         out[2, p] = pressure - volume[p] * sxx[p]
         out[3, p] = pressure - volume[p] * syy[p]
         out[4, p] = -volume[p] * sxy[p]
-        speed = max(speed, math.hypot(u[p], v[p]) + math.sqrt(max(grav, g) * h[p]))
-    return out, gp, slope, speed
+        speed = max(speed, math.sqrt(u[p] * u[p] + v[p] * v[p]) + math.sqrt(max(grav, g) * h[p]))
+    return out, gp, math.sqrt(slope), speed
 
 
 @numba.njit(cache=True, inline="always")
@@ -109,11 +110,10 @@ def transfer_bounds(nodes, dN, mass, u, v, forces, area, volume):
         b[2] = _bound(b[2], mass[p] * v[p])
         for c in range(5):
             b[3 + c] = _bound(b[3 + c], forces[c, p])
-        for k in range(nodes.shape[1]):
-            b[8] = _bound(b[8], dN[p, k, 0])
-            b[8] = _bound(b[8], dN[p, k, 1])
-            b[11] = max(b[11], -float(nodes[p, k]))
-            b[12] = max(b[12], float(nodes[p, k]) + 1.0)
+        for k in range(nodes.shape[1]):  # (a NaN position is caught by the health check)
+            b[8] = max(b[8], abs(dN[p, k, 0]), abs(dN[p, k, 1]))
+        b[11] = max(b[11], -float(nodes[p, 0]))  # a particle's nodes are in increasing order
+        b[12] = max(b[12], float(nodes[p, nodes.shape[1] - 1]) + 1.0)
         b[9] = _bound(b[9], area[p])
         b[10] = _bound(b[10], volume[p])
     return b

@@ -84,8 +84,9 @@ def gimp_weights(cell, xi, eta, lx, ly, nx, ny, dx, dy):
         dy: Cell height [m].
 
     Returns:
-        ``(nodes, S, dS)``: (n, 9) structured node indices (valid even where the weight is
-        zero), (n, 9) weights and (n, 9, 2) physical weight gradients.
+        ``(nodes, S, dS)``: (n, 9) structured node indices, non-decreasing along each row
+        (valid even where the weight is zero), (n, 9) weights and (n, 9, 2) physical weight
+        gradients.
     """
     n = cell.size
     nodes = np.empty((n, 9), dtype=np.int64)
