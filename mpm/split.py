@@ -83,17 +83,19 @@ class DomainSplitter:
         p.ly[thin] = np.minimum(p.ly[thin], self.limit[1])
 
     def split(self, p: Particles) -> Particles:
-        """Split along x, then y, until every half-width is within the limit (collective)."""
-        comm = self.grid.comm
-        wide = bool((p.lx > self.limit[0]).any() or (p.ly > self.limit[1]).any())
-        if not comm.allreduce(wide, op=MPI.LOR):  # the usual step: one small message
-            return p
-        while True:
-            n_before = self.count
+        """Split along x, then y, until every half-width is within the limit (collective).
+
+        ``p`` is changed in place (the parents' halves); the result holds parents and children.
+        """
+        while self._any_wide(p):  # the usual step: one small message, nothing to split
             p = self._split_axis(p, "lx", self.limit[0])
             p = self._split_axis(p, "ly", self.limit[1])
-            if comm.allreduce(self.count - n_before, op=MPI.SUM) == 0:
-                return p
+        return p
+
+    def _any_wide(self, p: Particles) -> bool:
+        """Whether a particle on any rank exceeds the limit (collective)."""
+        wide = bool((p.lx > self.limit[0]).any() or (p.ly > self.limit[1]).any())
+        return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
 
     def _split_axis(self, p: Particles, key: str, limit: float) -> Particles:
         comm = self.grid.comm
@@ -106,8 +108,7 @@ class DomainSplitter:
         self.next_id += int(parents.size)
         self.count += int(parents.size)
         half = 0.5 * getattr(p, key)[idx]
-        p = p.copy()
-        getattr(p, key)[idx] = half
+        getattr(p, key)[idx] = half  # in place: the solver owns the arrays
         p.volume[idx] *= 0.5
         child = p.select(idx)
         child.id = new_ids.astype(np.int64)
