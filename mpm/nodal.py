@@ -42,6 +42,11 @@ class GridSums:
         out[self.act] = values
         return out
 
+    def restrict(self, lo: float, hi: float) -> GridSums:
+        """Return the sums on the nodes ``lo <= i < hi`` (a view)."""
+        a, b = np.searchsorted(self.act, [lo, hi])
+        return GridSums(self.act[a:b], self.g[a:b], self.n_nodes)
+
     def locate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions in :attr:`act` of the global ``nodes`` that carry mass: ``(pos, which)``."""
         pos = np.searchsorted(self.act, nodes)

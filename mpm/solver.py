@@ -169,7 +169,7 @@ class MPMSolver:
         vx, vy = self._nodal_velocity(dt)
         p, b = self.particles, self._basis
         if self.flip > 0.0:  # FLIP: the particles keep their velocity plus the nodal change
-            sums = self._sums
+            sums = self._own
             mass = sums.g[:, 0]
             stopped = sums.full(((vx[sums.act] == 0.0) & (vy[sums.act] == 0.0)).astype(float))
             keep = 1.0 - (1.0 - self.flip) * scale  # PIC next to nodes friction stopped
@@ -209,9 +209,11 @@ class MPMSolver:
     def _nodal_velocity(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Nodal velocity at t + dt (eqs. 35-37), with implicit friction and walls.
 
-        Computed on the nodes with mass (:class:`mpm.nodal.GridSums`); zero elsewhere.
+        Computed on the nodes with mass that this rank's particles reach (:attr:`_own`, a
+        :class:`mpm.nodal.GridSums`; node by node, so the same bits on any split); zero
+        elsewhere.
         """
-        sums = self._sums
+        sums = self._own
         g = sums.g
         mass = g[:, 0]
         fx, fy = self._open_side_pressure(g[:, 3], g[:, 4])
@@ -229,7 +231,7 @@ class MPMSolver:
     def _zero_walls(self, vx: np.ndarray, vy: np.ndarray) -> None:
         """Zero the wall-normal velocity at the walls' nodes with mass (in place)."""
         for side in self.walls:
-            pos, _ = self._sums.locate(side.nodes)
+            pos, _ = self._own.locate(side.nodes)
             (vx if side.normal[0] != 0.0 else vy)[pos] = 0.0
 
     def _open_side_pressure(self, fx: np.ndarray, fy: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -243,7 +245,7 @@ class MPMSolver:
         """
         fx, fy = fx.copy(), fy.copy()
         for side in self.open_sides:
-            pos, which = self._sums.locate(side.nodes)
+            pos, which = self._own.locate(side.nodes)
             nodes = side.nodes[which]
             hb = self._h[nodes]
             big = 0.0 if self.still_g is None else self.still_g[nodes]
@@ -258,7 +260,7 @@ class MPMSolver:
         A mass-weighted average of particle velocities, so it stays bounded at nodes that
         carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
         """
-        p, b, sums = self.particles, self._basis, self._sums
+        p, b, sums = self.particles, self._basis, self._own
         mass = self.rho * p.volume
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
@@ -320,13 +322,14 @@ class MPMSolver:
             b.nodes, b.N, b.dN, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
-        bounds, self._window = p2g_bounds(
-            transfer_bounds(b.nodes, b.dN, mass, p.u, p.v, forces, p.area, p.volume), self.comm)
+        local = transfer_bounds(b.nodes, b.dN, mass, p.u, p.v, forces, p.area, p.volume)
+        bounds, self._window = p2g_bounds(local, self.comm)
         ext = fold_extractors(bounds, self.splitter.next_id)
         lo, hi = self._window
         self._sums = sums = self.nodal.window_sums(
             p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, *forces, p.area, p.volume, lo, hi - lo, ext),
             lo)
+        self._own = sums.restrict(-local[11], local[12])  # the nodes this rank's particles reach
         self._h = h = self.projector.project(sums.full(sums.g[:, 6])[:, None])[:, 0]
         self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
