@@ -15,17 +15,27 @@ import math
 import numba
 import numpy as np
 
+from mpm.kernels import node_index
+
 __all__ = ["particle_forces", "transfer_bounds"]
 
 
 @numba.njit(cache=True)
-def particle_forces(nodes, N, dN, z, hess, still, rho, g, volume, h, u, v, sxx, syy, sxy):
+def particle_forces(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, z, hess, still, rho, g, volume, h,
+                    u, v, sxx, syy, sxy):
     """Body force and force tensor per particle (seed eqs. 26, 34; eq. 46 with ``still``).
 
     Args:
-        nodes: (n, k) node indices of each particle.
-        N: (n, k) weights.
-        dN: (n, k, 2) weight gradients.
+        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
+        j0: (n,) first node row.
+        wx: (n, 3) weight factors along x.
+        dwx: (n, 3) their derivatives [1/m].
+        wy: (n, 3) weight factors along y.
+        dwy: (n, 3) their derivatives.
+        nx: Cells along x.
+        ny: Cells along y.
+        dx: Cell width [m].
+        dy: Cell height [m].
         z: Nodal elevation.
         hess: (n_nodes, 3) nodal ``(Z_xx, Z_xy, Z_yy)`` for the slope-consistent form, where
             ``G_p = cos²θ max(g + u·H·u, 0)`` replaces ``g``; (0, 3) for the seed's form.
@@ -45,32 +55,37 @@ def particle_forces(nodes, N, dN, z, hess, still, rho, g, volume, h, u, v, sxx, 
         gravity ``G_p`` (``g`` in the seed's form); the largest bed slope ``|∇Z|`` and the
         largest wave speed ``|v_p| + sqrt(max(G_p, g) h_p)`` over the particles.
     """
-    n = nodes.shape[0]
+    n = i0.size
     out = np.empty((5, n))
     gp = np.empty(n)
     slope_form, wb = hess.shape[0] > 0, still.size > 0
     slope, speed = 0.0, 0.0
     for p in range(n):
-        gx, gy = 0.0, 0.0
-        for k in range(nodes.shape[1]):
-            gx += dN[p, k, 0] * z[nodes[p, k]]
-            gy += dN[p, k, 1] * z[nodes[p, k]]
+        gx, gy, hxx, hxy, hyy, big = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        for b in range(3):
+            if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
+                continue
+            for a in range(3):
+                if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
+                    continue
+                i = node_index(i0[p], j0[p], a, b, nx, ny)
+                gx += dwx[p, a] * wy[p, b] * z[i]
+                gy += wx[p, a] * dwy[p, b] * z[i]
+                w = wx[p, a] * wy[p, b]
+                if slope_form:
+                    hxx += w * hess[i, 0]
+                    hxy += w * hess[i, 1]
+                    hyy += w * hess[i, 2]
+                if wb:
+                    big += w * still[i]
         slope = max(slope, gx * gx + gy * gy)  # squared: one sqrt at the end
         grav = g
         if slope_form:
-            hxx, hxy, hyy = 0.0, 0.0, 0.0
-            for k in range(nodes.shape[1]):
-                hxx += N[p, k] * hess[nodes[p, k], 0]
-                hxy += N[p, k] * hess[nodes[p, k], 1]
-                hyy += N[p, k] * hess[nodes[p, k], 2]
             uhu = u[p] * (hxx * u[p] + hxy * v[p]) + v[p] * (hxy * u[p] + hyy * v[p])
             cos2 = 1.0 / (1.0 + gx * gx + gy * gy)
             grav = cos2 * max(g + uhu, 0.0)
         gp[p] = grav
         if wb:
-            big = 0.0
-            for k in range(nodes.shape[1]):
-                big += N[p, k] * still[nodes[p, k]]
             area = volume[p] / h[p]
             weight = rho * grav * area * (h[p] - big)  # eq. 46: -ρ g (h - H) ∇Z
             pressure = 0.5 * rho * grav * area * (h[p] * h[p] - big * big)
@@ -95,25 +110,31 @@ def _bound(m, x):
 
 
 @numba.njit(cache=True)
-def transfer_bounds(nodes, dN, mass, u, v, forces, area, volume):
+def transfer_bounds(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, forces, area,
+                    volume):
     """Per-rank maxima for :func:`mpm.solver.p2g_bounds`, one pass.
 
+    The basis arguments are those of :func:`particle_forces`.
+
     Returns:
-        (13,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|, |dN|,
+        (13,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|, a bound of |dN|,
         |A|, |V|``, then ``-min(node)`` and ``max(node) + 1`` (``-inf`` with no particle).
     """
     b = np.zeros(13)
     b[11], b[12] = -np.inf, -np.inf
-    for p in range(nodes.shape[0]):
+    for p in range(i0.size):
         b[0] = _bound(b[0], mass[p])
         b[1] = _bound(b[1], mass[p] * u[p])
         b[2] = _bound(b[2], mass[p] * v[p])
         for c in range(5):
             b[3 + c] = _bound(b[3 + c], forces[c, p])
-        for k in range(nodes.shape[1]):  # (a NaN position is caught by the health check)
-            b[8] = max(b[8], abs(dN[p, k, 0]), abs(dN[p, k, 1]))
-        b[11] = max(b[11], -float(nodes[p, 0]))  # a particle's nodes are in increasing order
-        b[12] = max(b[12], float(nodes[p, nodes.shape[1] - 1]) + 1.0)
+        mx, my, mdx, mdy = 0.0, 0.0, 0.0, 0.0  # a bound of |dN| from the factors' maxima
+        for a in range(3):  # (a NaN position is caught by the health check)
+            mx, my = max(mx, abs(wx[p, a])), max(my, abs(wy[p, a]))
+            mdx, mdy = max(mdx, abs(dwx[p, a])), max(mdy, abs(dwy[p, a]))
+        b[8] = max(b[8], mdx * my, mx * mdy)
+        b[11] = max(b[11], -float(node_index(i0[p], j0[p], 0, 0, nx, ny)))
+        b[12] = max(b[12], float(node_index(i0[p], j0[p], 2, 2, nx, ny)) + 1.0)
         b[9] = _bound(b[9], area[p])
         b[10] = _bound(b[10], volume[p])
     return b

@@ -1,13 +1,14 @@
 """Numba kernels of the particle ↔ grid transfers (no Python loop over particles).
 
-Every kernel takes per-particle node indices, weights and weight gradients with any number
-of nodes per particle (4 for point values in a cell, 9 for the GIMP domains of
-:mod:`mpm.gimp`). ``p2g`` scatters the particle mass, momentum, area, volume sums and forces
-of seed eqs. 33-34 to those nodes; ``g2p`` gathers the nodal velocity (seed eq. 38) and its
-gradient (for the strain increment of seed eq. 40). The scatters skip nodes with a zero
-weight and gradient: the sums get the same bits (adding an exact zero), for about half the
-work (a domain inside one cell has four non-zero weights of nine); the gathers stay
-branch-free (faster as they are).
+The step kernels take the GIMP basis in factored form (:class:`mpm.gimp.GimpBasis`: the
+``3 × 3`` nodes of a particle, weights ``S = wx_a wy_b``, gradients ``(dwx_a wy_b,
+wx_a dwy_b)``) and form the products as they go, with the same arithmetic as the expanded
+arrays (the same bits). ``p2g`` scatters the particle mass, momentum, area, volume sums and
+forces of seed eqs. 33-34 to those nodes; ``g2p_flip`` gathers the nodal velocity (seed eq. 38
+with FLIP) and ``g2p_gradient`` its gradient (for the strain increment of seed eq. 40). A
+factor that is zero with its derivative (a node outside the particle's domain) is skipped:
+adding exact zeros changes no bit, and a domain inside one cell has four non-zero weights of
+nine. :func:`interpolate` is the expanded form (any nodes per particle) for seeding.
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["P2G_COLUMNS", "g2p", "g2p_flip", "g2p_gradient", "interpolate", "interpolate_gradient",
-           "p2g", "p2g_momentum"]
+__all__ = ["P2G_COLUMNS", "g2p_flip", "g2p_gradient", "gimp_interpolate", "interpolate", "p2g",
+           "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
@@ -31,15 +32,28 @@ def _deposit(out, i, c, x, ext):
     out[i, c, 1] += (x + ext[c, 1]) - ext[c, 1]
 
 
+@numba.njit(cache=True, inline="always")
+def node_index(i0, j0, a, b, nx, ny):
+    """Structured index of node ``(a, b)`` of a particle's 3 × 3 block (clipped to the grid)."""
+    return min(j0 + b, ny) * (nx + 1) + min(i0 + a, nx)
+
+
 @numba.njit(cache=True)
-def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, offset, n_nodes,
-        ext):
+def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sxx, syy, sxy,
+        area, volume, offset, n_nodes, ext):
     """Particle-to-grid sums (seed eqs. 33-34), as exact two-fold partial sums.
 
     Args:
-        nodes: (n, k) node indices of each particle.
-        N: (n, k) weights at the particles.
-        dN: (n, k, 2) weight gradients at the particles.
+        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
+        j0: (n,) first node row.
+        wx: (n, 3) weight factors along x.
+        dwx: (n, 3) their derivatives [1/m].
+        wy: (n, 3) weight factors along y.
+        dwy: (n, 3) their derivatives.
+        nx: Cells along x.
+        ny: Cells along y.
+        dx: Cell width [m].
+        dy: Cell height [m].
         mass: ``m_p`` [kg].
         u: x-velocity [m/s].
         v: y-velocity [m/s].
@@ -61,67 +75,142 @@ def p2g(nodes, N, dN, mass, u, v, body_x, body_y, sxx, syy, sxy, area, volume, o
         on the order.
     """
     out = np.zeros((n_nodes, 7, 2))
-    for p in range(nodes.shape[0]):
-        for k in range(nodes.shape[1]):
-            w = N[p, k]
-            gx, gy = dN[p, k, 0], dN[p, k, 1]
-            if w == 0.0 and gx == 0.0 and gy == 0.0:
-                continue  # a node outside the domain: adding zeros changes no bit
-            i = nodes[p, k] - offset
-            _deposit(out, i, 0, mass[p] * w, ext)
-            _deposit(out, i, 1, mass[p] * u[p] * w, ext)
-            _deposit(out, i, 2, mass[p] * v[p] * w, ext)
-            _deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
-            _deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
-            _deposit(out, i, 5, area[p] * w, ext)
-            _deposit(out, i, 6, volume[p] * w, ext)
+    for p in range(i0.size):
+        for b in range(3):
+            if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
+                continue
+            for a in range(3):
+                if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
+                    continue
+                w = wx[p, a] * wy[p, b]
+                gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
+                i = node_index(i0[p], j0[p], a, b, nx, ny) - offset
+                _deposit(out, i, 0, mass[p] * w, ext)
+                _deposit(out, i, 1, mass[p] * u[p] * w, ext)
+                _deposit(out, i, 2, mass[p] * v[p] * w, ext)
+                _deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
+                _deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
+                _deposit(out, i, 5, area[p] * w, ext)
+                _deposit(out, i, 6, volume[p] * w, ext)
     return out
 
 
 @numba.njit(cache=True)
-def p2g_momentum(nodes, N, mass, u, v, offset, n_nodes, ext):
+def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, offset, n_nodes, ext):
     """Nodal momentum ``Σ_p m_p v_p N_i`` only, (n_nodes, 2, 2) folds (the MUSL re-mapping).
 
     Node ``i`` goes to row ``i - offset`` of a window of ``n_nodes`` nodes (see :func:`p2g`).
     """
     out = np.zeros((n_nodes, 2, 2))
-    for p in range(nodes.shape[0]):
-        for k in range(nodes.shape[1]):
-            if N[p, k] == 0.0:
+    for p in range(i0.size):
+        for b in range(3):
+            if wy[p, b] == 0.0:
                 continue
-            i = nodes[p, k] - offset
-            _deposit(out, i, 0, mass[p] * u[p] * N[p, k], ext)
-            _deposit(out, i, 1, mass[p] * v[p] * N[p, k], ext)
+            for a in range(3):
+                if wx[p, a] == 0.0:
+                    continue
+                w = wx[p, a] * wy[p, b]
+                i = node_index(i0[p], j0[p], a, b, nx, ny) - offset
+                _deposit(out, i, 0, mass[p] * u[p] * w, ext)
+                _deposit(out, i, 1, mass[p] * v[p] * w, ext)
     return out
 
 
 @numba.njit(cache=True)
-def g2p(nodes, N, dN, vx, vy):
-    """Grid-to-particle velocity (seed eq. 38) and velocity gradient.
+def g2p_flip(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy, old_x, old_y, stopped, pu, pv,
+             keep):
+    """FLIP/PIC blend of the grid-to-particle velocity (seed eq. 38 with FLIP), one pass.
+
+    ``v_p ← f (v_p + Σ_i (v_i - v_i^old) N_i) + (1 - f) Σ_i v_i N_i`` with ``f = 0`` where
+    ``Σ_i stopped_i N_i > 0`` (next to a node friction stopped) and ``f = keep`` elsewhere
+    (``keep = 0``: PIC, seed eq. 38).
 
     Args:
-        nodes: (n, k) node indices of each particle.
-        N: (n, k) weights at the particles.
-        dN: (n, k, 2) weight gradients at the particles.
-        vx: Nodal x-velocity.
-        vy: Nodal y-velocity.
+        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
+        j0: (n,) first node row.
+        wx: (n, 3) weight factors along x.
+        dwx: (n, 3) their derivatives [1/m].
+        wy: (n, 3) weight factors along y.
+        dwy: (n, 3) their derivatives.
+        nx: Cells along x.
+        ny: Cells along y.
+        dx: Cell width [m].
+        dy: Cell height [m].
+        vx: Nodal x-velocity at the end of the step.
+        vy: Nodal y-velocity at the end of the step.
+        old_x: Nodal x-velocity mapped from the particles at the start of the step.
+        old_y: Nodal y-velocity mapped from the particles at the start of the step.
+        stopped: 1 at nodes where friction stopped the flow, else 0.
+        pu: Particle x-velocity at the start of the step.
+        pv: Particle y-velocity at the start of the step.
+        keep: FLIP fraction ``f`` away from stopped nodes.
 
     Returns:
-        ``(u, v, grad)`` with ``grad[p, a, b] = Σ_i v_{i,a} ∂_b N_i(x_p)``.
+        ``(u, v)``: the new particle velocity.
     """
-    n = nodes.shape[0]
-    u = np.zeros(n)
-    v = np.zeros(n)
-    grad = np.zeros((n, 2, 2))
+    n = i0.size
+    u_out = np.empty(n)
+    v_out = np.empty(n)
     for p in range(n):
-        for k in range(nodes.shape[1]):
-            i = nodes[p, k]
-            u[p] += N[p, k] * vx[i]
-            v[p] += N[p, k] * vy[i]
-            for b in range(2):
-                grad[p, 0, b] += vx[i] * dN[p, k, b]
-                grad[p, 1, b] += vy[i] * dN[p, k, b]
-    return u, v, grad
+        u, v, du, dv, near = 0.0, 0.0, 0.0, 0.0, 0.0
+        for b in range(3):
+            if wy[p, b] == 0.0:
+                continue
+            for a in range(3):
+                if wx[p, a] == 0.0:
+                    continue
+                w = wx[p, a] * wy[p, b]
+                i = node_index(i0[p], j0[p], a, b, nx, ny)
+                u += w * vx[i]
+                v += w * vy[i]
+                du += w * (vx[i] - old_x[i])
+                dv += w * (vy[i] - old_y[i])
+                near += w * stopped[i]
+        f = 0.0 if near > 0.0 else keep
+        u_out[p] = f * (pu[p] + du) + (1.0 - f) * u
+        v_out[p] = f * (pv[p] + dv) + (1.0 - f) * v
+    return u_out, v_out
+
+
+@numba.njit(cache=True)
+def g2p_gradient(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy):
+    """Velocity gradient ``grad[p, a, b] = Σ_i v_{i,a} ∂_b N_i(x_p)`` at the particles."""
+    n = i0.size
+    grad = np.empty((n, 2, 2))
+    for p in range(n):
+        g00, g01, g10, g11 = 0.0, 0.0, 0.0, 0.0
+        for b in range(3):
+            if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
+                continue
+            for a in range(3):
+                if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
+                    continue
+                gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
+                i = node_index(i0[p], j0[p], a, b, nx, ny)
+                g00 += vx[i] * gx
+                g01 += vx[i] * gy
+                g10 += vy[i] * gx
+                g11 += vy[i] * gy
+        grad[p, 0, 0], grad[p, 0, 1], grad[p, 1, 0], grad[p, 1, 1] = g00, g01, g10, g11
+    return grad
+
+
+@numba.njit(cache=True)
+def gimp_interpolate(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, values):
+    """Q1 (GIMP) interpolant ``Σ_i values_i S_ip`` at the particles."""
+    n = i0.size
+    out = np.empty(n)
+    for p in range(n):
+        acc = 0.0
+        for b in range(3):
+            if wy[p, b] == 0.0:
+                continue
+            for a in range(3):
+                if wx[p, a] == 0.0:
+                    continue
+                acc += wx[p, a] * wy[p, b] * values[node_index(i0[p], j0[p], a, b, nx, ny)]
+        out[p] = acc
+    return out
 
 
 @numba.njit(cache=True)
@@ -135,76 +224,3 @@ def interpolate(nodes, N, values):
             acc += N[p, k] * values[nodes[p, k]]
         out[p] = acc
     return out
-
-
-@numba.njit(cache=True)
-def interpolate_gradient(nodes, dN, values):
-    """Gradient of the Q1 interpolant at the particles, shape (n, 2)."""
-    n = nodes.shape[0]
-    out = np.zeros((n, 2))
-    for p in range(n):
-        for k in range(nodes.shape[1]):
-            out[p, 0] += dN[p, k, 0] * values[nodes[p, k]]
-            out[p, 1] += dN[p, k, 1] * values[nodes[p, k]]
-    return out
-
-
-@numba.njit(cache=True)
-def g2p_flip(nodes, N, vx, vy, old_x, old_y, stopped, pu, pv, keep):
-    """FLIP/PIC blend of the grid-to-particle velocity (seed eq. 38 with FLIP), one pass.
-
-    ``v_p ← f (v_p + Σ_i (v_i - v_i^old) N_i) + (1 - f) Σ_i v_i N_i`` with ``f = 0`` where
-    ``Σ_i stopped_i N_i > 0`` (next to a node friction stopped) and ``f = keep`` elsewhere.
-
-    Args:
-        nodes: (n, k) node indices of each particle.
-        N: (n, k) weights at the particles.
-        vx: Nodal x-velocity at the end of the step.
-        vy: Nodal y-velocity at the end of the step.
-        old_x: Nodal x-velocity mapped from the particles at the start of the step.
-        old_y: Nodal y-velocity mapped from the particles at the start of the step.
-        stopped: 1 at nodes where friction stopped the flow, else 0.
-        pu: Particle x-velocity at the start of the step.
-        pv: Particle y-velocity at the start of the step.
-        keep: FLIP fraction ``f`` away from stopped nodes.
-
-    Returns:
-        ``(u, v)``: the new particle velocity.
-    """
-    n = nodes.shape[0]
-    u_out = np.empty(n)
-    v_out = np.empty(n)
-    for p in range(n):
-        u = 0.0
-        v = 0.0
-        du = 0.0
-        dv = 0.0
-        near = 0.0
-        for k in range(nodes.shape[1]):
-            w = N[p, k]
-            if w == 0.0:
-                continue
-            i = nodes[p, k]
-            u += w * vx[i]
-            v += w * vy[i]
-            du += w * (vx[i] - old_x[i])
-            dv += w * (vy[i] - old_y[i])
-            near += w * stopped[i]
-        f = 0.0 if near > 0.0 else keep
-        u_out[p] = f * (pu[p] + du) + (1.0 - f) * u
-        v_out[p] = f * (pv[p] + dv) + (1.0 - f) * v
-    return u_out, v_out
-
-
-@numba.njit(cache=True)
-def g2p_gradient(nodes, dN, vx, vy):
-    """Velocity gradient ``grad[p, a, b] = Σ_i v_{i,a} ∂_b N_i(x_p)`` at the particles."""
-    n = nodes.shape[0]
-    grad = np.zeros((n, 2, 2))
-    for p in range(n):
-        for k in range(nodes.shape[1]):
-            i = nodes[p, k]
-            for b in range(2):
-                grad[p, 0, b] += vx[i] * dN[p, k, b]
-                grad[p, 1, b] += vy[i] * dN[p, k, b]
-    return grad

@@ -112,6 +112,59 @@ def _fct_blend(cells, matrix, low, high, mass, tol):
     return out, passes
 
 
+@numba.njit(cache=True)
+def _solve_line(x, start, step, n, first_end, last_end, c):
+    """:func:`tridiagonal_mass_solve` in place on ``x[start + t step]``, ``t < n`` (same bits)."""
+    diag = (2.0 if first_end else 4.0) / 6.0
+    c[0] = (1.0 / 6.0) / diag
+    x[start] = x[start] / diag
+    for t in range(1, n):
+        d = (2.0 if (t == n - 1 and last_end) else 4.0) / 6.0
+        denom = d - (1.0 / 6.0) * c[t - 1]
+        c[t] = (1.0 / 6.0) / denom
+        x[start + t * step] = (x[start + t * step] - (1.0 / 6.0) * x[start + (t - 1) * step]
+                               ) / denom
+    for t in range(n - 2, -1, -1):
+        x[start + t * step] -= c[t] * x[start + (t + 1) * step]
+
+
+@numba.njit(cache=True)
+def _consistent(b, wy, wx, ends, area):
+    """``M_C^{-1} b`` on a (wy × wx) window, b row-major (wy wx, k): rows, then columns."""
+    k, size = b.shape[1], wy * wx
+    x = np.empty(k * size)
+    for a in range(size):
+        for m in range(k):
+            x[m * size + a] = b[a, m]
+    c = np.empty(max(wx, wy))
+    for m in range(k):
+        for r in range(wy):
+            _solve_line(x, m * size + r * wx, 1, wx, ends[0], ends[1], c)
+        for i in range(wx):
+            _solve_line(x, m * size + i, wx, wy, ends[2], ends[3], c)
+    out = np.empty((size, k))
+    for a in range(size):
+        for m in range(k):
+            out[a, m] = x[m * size + a] / area
+    return out
+
+
+@numba.njit(cache=True)
+def _blend(sub, mass, cells, matrix, wy, wx, ends, area):
+    """Project a window's sums (module docstring): ``(h, passes)``, ``h[:, 0] >= 0``."""
+    low = np.empty(sub.shape)
+    top = 0.0
+    for a in range(sub.shape[0]):
+        for m in range(sub.shape[1]):
+            low[a, m] = sub[a, m] / mass[a]
+        top = max(top, abs(low[a, 0]))
+    high = _consistent(sub, wy, wx, ends, area)
+    res, passes = _fct_blend(cells, matrix, low, high, mass, 1e-13 * top)
+    for a in range(sub.shape[0]):
+        res[a, 0] = max(res[a, 0], 0.0)
+    return res, passes
+
+
 #: Nodes added around the nodes with particle sums when projecting on a window of the grid.
 #: ``M_C^{-1}`` decays like ``(2 - sqrt 3)^k ≈ 0.27^k`` per node, so the window's truncation
 #: changes the projection by about ``1e-14`` of the depth (relative): round-off.
@@ -154,15 +207,9 @@ class GridProjector:
         """
         ny1, nx1 = self.shape
         j0, j1, i0, i1 = window if window is not None else (0, ny1, 0, nx1)
-        wy, wx = j1 - j0, i1 - i0
-        k = b.shape[1]
-        grid = b.reshape(wy, wx, k).transpose(2, 0, 1)  # (k, wy, wx)
-        rows = tridiagonal_mass_solve(np.ascontiguousarray(grid.reshape(k * wy, wx)),
-                                      i0 == 0, i1 == nx1)
-        rows = rows.reshape(k, wy, wx).transpose(0, 2, 1).reshape(k * wx, wy)
-        sol = tridiagonal_mass_solve(np.ascontiguousarray(rows), j0 == 0,
-                                     j1 == ny1).reshape(k, wx, wy)
-        return sol.transpose(2, 1, 0).reshape(wy * wx, k) / self.area
+        ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
+        return _consistent(np.ascontiguousarray(b, dtype=float), j1 - j0, i1 - i0, ends,
+                           self.area)
 
     def project(self, b: np.ndarray) -> np.ndarray:
         """Blend of the lumped and consistent projections of ``b`` (see the module docstring).
@@ -178,16 +225,38 @@ class GridProjector:
         out = np.zeros_like(b)
         if window is None:
             return out
-        index, cells = self._window_arrays(window)
-        sub = b[index]
-        mass = self.lumped_mass[index][:, None]
-        low = sub / mass
-        high = self.consistent(sub, window)
-        tol = 1e-13 * float(np.abs(low[:, 0]).max(initial=0.0))
-        res, self.iterations = _fct_blend(cells, self.matrix, low, high, mass[:, 0], tol)
-        res[:, 0] = np.maximum(res[:, 0], 0.0)
-        out[index] = res
+        index, _ = self._window_arrays(window)
+        out[index] = self._blend(np.ascontiguousarray(b[index], dtype=float), window)
         return out
+
+    def project_nodes(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """:meth:`project` of one column given on the nodes where it is not zero (sorted).
+
+        Returns:
+            (n_nodes,) global field, >= 0.
+        """
+        ny1, nx1 = self.shape
+        out = np.zeros(ny1 * nx1)
+        if nodes.size == 0:
+            return out
+        j, i = nodes // nx1, nodes % nx1
+        window = self._bounds(int(j[0]), int(j[-1]), int(i.min()), int(i.max()))
+        j0, j1, i0, i1 = window
+        sub = np.zeros(((j1 - j0) * (i1 - i0), 1))
+        sub[(j - j0) * (i1 - i0) + (i - i0), 0] = values
+        index, _ = self._window_arrays(window)
+        out[index] = self._blend(sub, window)[:, 0]
+        return out
+
+    def _blend(self, sub: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
+        """Projection of a window's sums (row-major, (n, k)); sets :attr:`iterations`."""
+        ny1, nx1 = self.shape
+        j0, j1, i0, i1 = window
+        index, cells = self._window_arrays(window)
+        ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
+        res, self.iterations = _blend(sub, self.lumped_mass[index], cells, self.matrix,
+                                      j1 - j0, i1 - i0, ends, self.area)
+        return res
 
     def window(self, weights: np.ndarray) -> tuple[int, int, int, int] | None:
         """``(j0, j1, i0, i1)``: the nodes with ``weights != 0`` and a margin (None: none)."""
@@ -196,8 +265,13 @@ class GridProjector:
         if nz.size == 0:
             return None
         j, i = nz // nx1, nz % nx1
-        lo_j, hi_j = _block(int(j.min()) - WINDOW_MARGIN, int(j.max()) + WINDOW_MARGIN + 1, ny1)
-        lo_i, hi_i = _block(int(i.min()) - WINDOW_MARGIN, int(i.max()) + WINDOW_MARGIN + 1, nx1)
+        return self._bounds(int(j.min()), int(j.max()), int(i.min()), int(i.max()))
+
+    def _bounds(self, j_lo: int, j_hi: int, i_lo: int, i_hi: int) -> tuple[int, int, int, int]:
+        """Return the window of the nodes in rows ``j_lo..j_hi``, columns ``i_lo..i_hi``."""
+        ny1, nx1 = self.shape
+        lo_j, hi_j = _block(j_lo - WINDOW_MARGIN, j_hi + WINDOW_MARGIN + 1, ny1)
+        lo_i, hi_i = _block(i_lo - WINDOW_MARGIN, i_hi + WINDOW_MARGIN + 1, nx1)
         return lo_j, hi_j, lo_i, hi_i
 
     def _window_arrays(self, window: tuple[int, int, int, int]) -> tuple[np.ndarray, ...]:

@@ -38,16 +38,9 @@ from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from mpm.forces import particle_forces, transfer_bounds
-from mpm.gimp import gimp_weights
-from mpm.grid import Basis, ParticleGrid
-from mpm.kernels import (
-    g2p,
-    g2p_flip,
-    g2p_gradient,
-    interpolate,
-    p2g,
-    p2g_momentum,
-)
+from mpm.gimp import gimp_basis
+from mpm.grid import ParticleGrid
+from mpm.kernels import g2p_flip, g2p_gradient, gimp_interpolate, p2g, p2g_momentum
 from mpm.migrate import balanced_destinations, migrate
 from mpm.nodal import NodalGrid
 from mpm.particles import Particles
@@ -131,8 +124,7 @@ class MPMSolver:
 
     def particle_elevation(self) -> np.ndarray:
         """Terrain elevation at this rank's particles (Q1 interpolation; local, no MPI)."""
-        b = self._basis
-        return interpolate(b.nodes, b.N, self.z_g)
+        return gimp_interpolate(*self._basis.arrays, self.z_g)
 
     def _step_limits(self) -> tuple[float, float]:
         """``(stable step, transport step)`` of the current state (collective, no side effect).
@@ -168,16 +160,17 @@ class MPMSolver:
         scale = self._pic_scale() if self.flip > 0.0 else 1.0
         vx, vy = self._nodal_velocity(dt)
         p, b = self.particles, self._basis
+        sums = self._own
+        mass = sums.g[:, 0]
+        keep = 0.0  # PIC (seed eq. 38)
         if self.flip > 0.0:  # FLIP: the particles keep their velocity plus the nodal change
-            sums = self._own
-            mass = sums.g[:, 0]
             stopped = sums.full(((vx[sums.act] == 0.0) & (vy[sums.act] == 0.0)).astype(float))
             keep = 1.0 - (1.0 - self.flip) * scale  # PIC next to nodes friction stopped
-            p.u, p.v = g2p_flip(b.nodes, b.N, vx, vy, sums.full(sums.g[:, 1] / mass),
-                                sums.full(sums.g[:, 2] / mass), stopped, p.u, p.v, keep)
+            old_x, old_y = sums.full(sums.g[:, 1] / mass), sums.full(sums.g[:, 2] / mass)
         else:
-            p.u, p.v, _ = g2p(b.nodes, b.N, b.dN, vx, vy)
-        grad = g2p_gradient(b.nodes, b.dN, *self._remapped_velocity())
+            stopped = old_x = old_y = np.zeros_like(vx)
+        p.u, p.v = g2p_flip(*b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
+        grad = g2p_gradient(*b.arrays, *self._remapped_velocity())
         self.update_depth_and_stress(dt, grad)
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
@@ -265,7 +258,7 @@ class MPMSolver:
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
         lo, hi = self._window
-        mom = self.nodal.exact_sum(p2g_momentum(b.nodes, b.N, mass, p.u, p.v, lo, hi - lo,
+        mom = self.nodal.exact_sum(p2g_momentum(*b.arrays, mass, p.u, p.v, lo, hi - lo,
                                                 ext))[sums.act - lo]
         mass = sums.g[:, 0]
         vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
@@ -316,21 +309,20 @@ class MPMSolver:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
         self._limits: tuple[float, float] | None = None
         p, g = self.particles, self.grid
-        self._basis = b = Basis(p.cell, *gimp_weights(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx,
-                                                       g.ny, g.dx, g.dy))
+        self._basis = b = gimp_basis(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx, g.ny, g.dx, g.dy)
         forces, self._gp, self._slope, self._speed = particle_forces(
-            b.nodes, b.N, b.dN, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
+            *b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
-        local = transfer_bounds(b.nodes, b.dN, mass, p.u, p.v, forces, p.area, p.volume)
+        local = transfer_bounds(*b.arrays, mass, p.u, p.v, forces, p.area, p.volume)
         bounds, self._window = p2g_bounds(local, self.comm)
         ext = fold_extractors(bounds, self.splitter.next_id)
         lo, hi = self._window
         self._sums = sums = self.nodal.window_sums(
-            p2g(b.nodes, b.N, b.dN, mass, p.u, p.v, *forces, p.area, p.volume, lo, hi - lo, ext),
+            p2g(*b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, lo, hi - lo, ext),
             lo)
         self._own = sums.restrict(-local[11], local[12])  # the nodes this rank's particles reach
-        self._h = h = self.projector.project(sums.full(sums.g[:, 6])[:, None])[:, 0]
+        self._h = h = self.projector.project_nodes(sums.act, sums.g[:, 6])
         self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
             q = sums.full(h[sums.act] * sums.g[:, col] / sums.g[:, 0])

@@ -13,6 +13,7 @@ from mpi4py import MPI
 from fem_runout import cellsum
 from fem_runout.exact_sum import extractors
 from fem_runout.mesh import build_discretization
+from mpm.gimp import GimpBasis
 from mpm.kernels import p2g_momentum
 
 RNG = np.random.default_rng(13)
@@ -56,16 +57,21 @@ def test_cell_slots_are_the_four_corners_and_reject_other_cells():
 
 @pytest.mark.parametrize("spread", [0, 12], ids=["similar", "twelve-decades"])
 def test_particle_sums_do_not_depend_on_order_or_split(spread):
-    n_p, n_nodes = 5000, 50
-    nodes = RNG.integers(0, n_nodes, size=(n_p, 4))
-    weights = RNG.uniform(0.0, 1.0, size=(n_p, 4))
+    n_p, nx, ny = 5000, 6, 6  # 49 nodes, ~100 particles per node
+    i0, j0 = RNG.integers(0, nx, size=n_p), RNG.integers(0, ny, size=n_p)
+    wx, wy = RNG.uniform(0.0, 1.0, size=(n_p, 3)), RNG.uniform(0.0, 1.0, size=(n_p, 3))
+    wx[:, 2] = 0.0  # a domain inside one cell along x: only two factors
+    basis = GimpBasis(i0, j0, wx, 0 * wx, wy, 0 * wy, (nx, ny, 1.0, 1.0))
+    nodes, weights, _ = basis.expand()
+    n_nodes = (nx + 1) * (ny + 1)
     mass = 10.0 ** RNG.uniform(-spread, 0, size=n_p)
     u, v = RNG.normal(size=n_p) * 30.0, RNG.normal(size=n_p)
     bounds = [np.abs(mass * u).max(), np.abs(mass * v).max()]
     ext = extractors(bounds, n_p, MPI.COMM_SELF)
 
     def total(idx_groups):  # "ranks": sum each group's folds, then the groups
-        folds = sum(p2g_momentum(nodes[g], weights[g], mass[g], u[g], v[g], 0, n_nodes, ext)
+        folds = sum(p2g_momentum(i0[g], j0[g], wx[g], 0 * wx[g], wy[g], 0 * wy[g], nx, ny, 1.0,
+                                 1.0, mass[g], u[g], v[g], 0, n_nodes, ext)
                     for g in idx_groups)
         return folds[..., 0] + folds[..., 1]
 

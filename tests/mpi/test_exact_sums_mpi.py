@@ -41,15 +41,16 @@ def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
     forces = np.zeros((5, n))
     forces[0, 0] = 50.0  # the largest body force on one particle ...
     forces[2, 1] = 70.0  # ... the largest stress on the next one (another rank when split)
-    nodes = np.arange(9 * n, dtype=np.int64).reshape(n, 9)
-    dN = np.ones((n, 9, 2))
+    i0, j0 = np.arange(n), np.zeros(n, dtype=np.int64)  # one row of 12 cells
+    wx, dwx = np.full((n, 3), 0.5), np.ones((n, 3))
 
     def bounds(k, comm):
-        return p2g_bounds(transfer_bounds(nodes[k], dN[k], mass[k], u[k], v[k],
+        return p2g_bounds(transfer_bounds(i0[k], j0[k], wx[k], dwx[k], wx[k], dwx[k], n, 1, 1.0,
+                                          1.0, mass[k], u[k], v[k],
                                           np.ascontiguousarray(forces[:, k]), area[k],
                                           volume[k]), comm)
 
     whole, window = bounds(np.arange(n), MPI.COMM_SELF)
     part, part_window = bounds(_share(n), WORLD)
-    assert np.array_equal(part, whole) and part_window == window == (0, 9 * n)
-    assert whole[3] == 50.0 + 70.0  # body and stress bounds add up, whoever holds them
+    assert np.array_equal(part, whole) and part_window == window == (0, 2 * (n + 1))
+    assert whole[3] == 50.0 + 70.0 * 0.5  # body and stress (x |dN|) add up, whoever holds them
