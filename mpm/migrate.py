@@ -67,7 +67,8 @@ def migrate(grid: ParticleGrid, particles: Particles,
     leaving = np.flatnonzero(dest != comm.rank)
     order = leaving[np.argsort(dest[leaving], kind="stable")]
     send_counts = np.bincount(dest[leaving], minlength=comm.size).astype(np.int64)
-    recv_counts = np.asarray(comm.alltoall(send_counts.tolist()), dtype=np.int64)
+    recv_counts = np.empty_like(send_counts)
+    comm.Alltoall(send_counts, recv_counts)
     send = np.ascontiguousarray(particles.select(order).pack()).reshape(-1)
     recv = np.empty(int(recv_counts.sum()) * _WIDTH)
     sc, rc = send_counts * _WIDTH, recv_counts * _WIDTH

@@ -195,8 +195,11 @@ class MPMSolver:
         p = self.particles
         if not local and not all(np.isfinite(getattr(p, k)).all() for k in ("h", "u", "v")):
             local = "the particle state has NaN or infinite values"
-        messages = [m for m in self.comm.allgather(local) if m]
-        return messages[0] if messages else None
+        flag = np.array([1 if local else 0])
+        self.comm.Allreduce(MPI.IN_PLACE, flag, op=MPI.MAX)  # the usual step: one integer
+        if not flag[0]:
+            return None
+        return next(m for m in self.comm.allgather(local) if m)
 
     # -- steps -----------------------------------------------------------------------------
     def _nodal_velocity(self, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -33,6 +33,7 @@ parents' ids over all ranks, so ids do not depend on the rank count.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from mpi4py import MPI
 
@@ -43,6 +44,22 @@ __all__ = ["MAX_ASPECT", "DomainSplitter"]
 
 #: Largest aspect ratio ``l_x/l_y`` (or ``l_y/l_x``) of a particle domain.
 MAX_ASPECT = 4.0
+
+
+@numba.njit(cache=True)
+def _stretch(lx, ly, h, dt, grad, cell, max_aspect, thin_depth, limit_x, limit_y):
+    """Return the new half-widths (see :meth:`DomainSplitter.stretch`); ``cell = Δx/Δy``."""
+    n = lx.size
+    out_x, out_y = np.empty(n), np.empty(n)
+    for p in range(n):
+        a = lx[p] * max(1.0 + dt * grad[p, 0, 0], 1e-3)
+        b = ly[p] * max(1.0 + dt * grad[p, 1, 1], 1e-3)
+        ratio = min(max(a / (b * cell), 1.0 / max_aspect), max_aspect) * cell
+        area = a * b
+        out_x[p], out_y[p] = np.sqrt(area * ratio), np.sqrt(area / ratio)
+        if h[p] < thin_depth:
+            out_x[p], out_y[p] = min(out_x[p], limit_x), min(out_y[p], limit_y)
+    return out_x, out_y
 
 
 class DomainSplitter:
@@ -72,15 +89,8 @@ class DomainSplitter:
         only up to ``l_x/l_y`` in ``[1/r, r]``, ``r`` = :data:`MAX_ASPECT`: beyond it the
         domain is made less elongated at the same area (see the module docstring).
         """
-        lx = p.lx * np.maximum(1.0 + dt * grad[:, 0, 0], 1e-3)
-        ly = p.ly * np.maximum(1.0 + dt * grad[:, 1, 1], 1e-3)
-        cell = self.grid.dx / self.grid.dy  # the ratio is measured in cell units
-        ratio = np.clip(lx / (ly * cell), 1.0 / self.max_aspect, self.max_aspect) * cell
-        area = lx * ly
-        p.lx, p.ly = np.sqrt(area * ratio), np.sqrt(area / ratio)
-        thin = p.h < self.thin_depth
-        p.lx[thin] = np.minimum(p.lx[thin], self.limit[0])
-        p.ly[thin] = np.minimum(p.ly[thin], self.limit[1])
+        p.lx, p.ly = _stretch(p.lx, p.ly, p.h, dt, grad, self.grid.dx / self.grid.dy,
+                              self.max_aspect, self.thin_depth, *self.limit)
 
     def split(self, p: Particles) -> Particles:
         """Split along x, then y, until every half-width is within the limit (collective).
