@@ -117,11 +117,12 @@ def transfer_bounds(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, forces
     The basis arguments are those of :func:`particle_forces`.
 
     Returns:
-        (13,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|, a bound of |dN|,
-        |A|, |V|``, then ``-min(node)`` and ``max(node) + 1`` (``-inf`` with no particle).
+        (15,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|``, a bound
+        of ``|dN|``, ``max |A|, |V|``, then the nodes' ``-min(row), max(row), -min(column),
+        max(column)`` (``-inf`` with no particle).
     """
-    b = np.zeros(13)
-    b[11], b[12] = -np.inf, -np.inf
+    b = np.zeros(15)
+    b[11:] = -np.inf
     for p in range(i0.size):
         b[0] = _bound(b[0], mass[p])
         b[1] = _bound(b[1], mass[p] * u[p])
@@ -133,8 +134,8 @@ def transfer_bounds(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, forces
             mx, my = max(mx, abs(wx[p, a])), max(my, abs(wy[p, a]))
             mdx, mdy = max(mdx, abs(dwx[p, a])), max(mdy, abs(dwy[p, a]))
         b[8] = max(b[8], mdx * my, mx * mdy)
-        b[11] = max(b[11], -float(node_index(i0[p], j0[p], 0, 0, nx, ny)))
-        b[12] = max(b[12], float(node_index(i0[p], j0[p], 2, 2, nx, ny)) + 1.0)
+        b[11], b[12] = max(b[11], -float(j0[p])), max(b[12], float(min(j0[p] + 2, ny)))
+        b[13], b[14] = max(b[13], -float(i0[p])), max(b[14], float(min(i0[p] + 2, nx)))
         b[9] = _bound(b[9], area[p])
         b[10] = _bound(b[10], volume[p])
     return b

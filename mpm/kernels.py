@@ -38,9 +38,15 @@ def node_index(i0, j0, a, b, nx, ny):
     return min(j0 + b, ny) * (nx + 1) + min(i0 + a, nx)
 
 
+@numba.njit(cache=True, inline="always")
+def _box_index(i0, j0, a, b, nx, ny, box):
+    """Position of node ``(a, b)`` of a particle's block in a box ``(row, col, rows, cols)``."""
+    return (min(j0 + b, ny) - box[0]) * box[3] + min(i0 + a, nx) - box[1]
+
+
 @numba.njit(cache=True)
 def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sxx, syy, sxy,
-        area, volume, offset, n_nodes, ext):
+        area, volume, box, ext):
     """Particle-to-grid sums (seed eqs. 33-34), as exact two-fold partial sums.
 
     Args:
@@ -64,17 +70,17 @@ def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sx
         sxy: xy entry of the force tensor [N m].
         area: ``A_p`` [m²].
         volume: ``V_p`` [m³].
-        offset: First node of the window written (node ``i`` goes to row ``i - offset``).
-        n_nodes: Number of nodes of the window (every particle's nodes lie in it).
+        box: ``(row, column, rows, columns)`` of the box of nodes written (every particle's
+            nodes lie in it; :class:`mpm.exchange.Box`), row-major.
         ext: (7, 2) extractors of the two folds per column
             (:func:`fem_runout.exact_sum.extractors`).
 
     Returns:
-        (n_nodes, 7, 2) fold sums of the window's nodes in the order of :data:`P2G_COLUMNS`;
-        their sum over ranks and folds (:meth:`mpm.nodal.NodalGrid.exact_sum`) does not depend
+        (box nodes, 7, 2) fold sums of the box's nodes in the order of :data:`P2G_COLUMNS`;
+        their sum over ranks and folds (:class:`mpm.exchange.FoldExchange`) does not depend
         on the order.
     """
-    out = np.zeros((n_nodes, 7, 2))
+    out = np.zeros((box[2] * box[3], 7, 2))
     for p in range(i0.size):
         for b in range(3):
             if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
@@ -84,7 +90,7 @@ def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sx
                     continue
                 w = wx[p, a] * wy[p, b]
                 gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
-                i = node_index(i0[p], j0[p], a, b, nx, ny) - offset
+                i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
                 _deposit(out, i, 0, mass[p] * w, ext)
                 _deposit(out, i, 1, mass[p] * u[p] * w, ext)
                 _deposit(out, i, 2, mass[p] * v[p] * w, ext)
@@ -96,12 +102,12 @@ def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sx
 
 
 @numba.njit(cache=True)
-def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, offset, n_nodes, ext):
-    """Nodal momentum ``Σ_p m_p v_p N_i`` only, (n_nodes, 2, 2) folds (the MUSL re-mapping).
+def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, box, ext):
+    """Nodal momentum ``Σ_p m_p v_p N_i`` only, (box nodes, 2, 2) folds (MUSL re-mapping).
 
-    Node ``i`` goes to row ``i - offset`` of a window of ``n_nodes`` nodes (see :func:`p2g`).
+    The nodes are those of ``box`` (see :func:`p2g`).
     """
-    out = np.zeros((n_nodes, 2, 2))
+    out = np.zeros((box[2] * box[3], 2, 2))
     for p in range(i0.size):
         for b in range(3):
             if wy[p, b] == 0.0:
@@ -110,7 +116,7 @@ def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, offset, n
                 if wx[p, a] == 0.0:
                     continue
                 w = wx[p, a] * wy[p, b]
-                i = node_index(i0[p], j0[p], a, b, nx, ny) - offset
+                i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
                 _deposit(out, i, 0, mass[p] * u[p] * w, ext)
                 _deposit(out, i, 1, mass[p] * v[p] * w, ext)
     return out

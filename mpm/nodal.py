@@ -1,12 +1,12 @@
 """The global structured node array on which DAMPM does its grid work.
 
 A GIMP domain (:mod:`mpm.gimp`) reaches the nodes of the neighbouring cells, diagonal ones
-included, which need not be on the particle's rank. DAMPM therefore sums its particle-to-grid
-transfers into one array over all ``(nx + 1)(ny + 1)`` nodes (structured index
-``j (nx + 1) + i``), adds it over the ranks with one allreduce per transfer, and does the nodal
-updates on the whole array on every rank (identical results, no further messages). Nodal work
-is O(nodes) and small next to the particle work; the DOLFINx functions the outputs read are the
-local view ``global[node_index]``.
+included, which need not be on the particle's rank. DAMPM therefore indexes its nodes by their
+structured index ``j (nx + 1) + i`` on the whole grid, sums its particle-to-grid transfers over
+the ranks on the nodes some rank touched (:mod:`mpm.exchange`), keeps the sums on the nodes
+with mass (:class:`GridSums`), and each rank updates the nodes its own particles reach (node by
+node: the same bits whatever the split). The DOLFINx functions the outputs read are the local
+view ``global[node_index]``.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.mesh import Discretization, Side
+from mpm.exchange import Box
 from mpm.gimp import structured_nodes
 
 __all__ = ["GridSums", "NodalGrid"]
@@ -30,11 +31,13 @@ class GridSums:
         act: Sorted global indices of the nodes with ``mass > 0``.
         g: (len(act), k) sums at those nodes (columns of :data:`mpm.kernels.P2G_COLUMNS`).
         n_nodes: Size of the global node array.
+        index: Positions of :attr:`act` in the node list the sums came from.
     """
 
     act: np.ndarray
     g: np.ndarray
     n_nodes: int
+    index: np.ndarray
 
     def full(self, values: np.ndarray) -> np.ndarray:
         """Global array with ``values`` at :attr:`act`, zero elsewhere."""
@@ -45,7 +48,7 @@ class GridSums:
     def restrict(self, lo: float, hi: float) -> GridSums:
         """Return the sums on the nodes ``lo <= i < hi`` (a view)."""
         a, b = np.searchsorted(self.act, [lo, hi])
-        return GridSums(self.act[a:b], self.g[a:b], self.n_nodes)
+        return GridSums(self.act[a:b], self.g[a:b], self.n_nodes, self.index[a:b])
 
     def locate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions in :attr:`act` of the global ``nodes`` that carry mass: ``(pos, which)``."""
@@ -94,40 +97,17 @@ class NodalGrid:
             self.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.SUM)
         return local
 
-    def exact_sum(self, folds: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
-        """Sum two-fold partial sums (n_nodes, ..., 2) over the ranks, then the folds (collective).
+    def box(self, bounds: np.ndarray) -> Box:
+        """Return the box of nodes ``-min row, max row, -min column, max column`` (-inf: none)."""
+        if not np.isfinite(bounds[1]):
+            return Box(0, 0, 0, 0, self.cells[0] + 1)
+        j0, i0 = int(-bounds[0]), int(-bounds[2])
+        return Box(j0, i0, int(bounds[1]) - j0 + 1, int(bounds[3]) - i0 + 1, self.cells[0] + 1)
 
-        The folds' sums are exact (:mod:`fem_runout.exact_sum`), so the result has the same bits
-        whatever the split of the particles between ranks and their order.
-
-        Args:
-            folds: Per-rank partial sums on the global node array.
-            nodes: The nodes this rank's contributions went to (any shape), or None. With
-                it, only the range of node indices some rank wrote is exchanged (the rest
-                is zero on every rank): the same bits, a message of the flow's size.
-        """
-        if self.comm.size > 1:
-            lo, hi = 0, folds.shape[0]
-            if nodes is not None:
-                span = np.array([-int(nodes.min()), int(nodes.max()) + 1] if nodes.size
-                                else [-folds.shape[0], 0], dtype=np.int64)
-                self.comm.Allreduce(MPI.IN_PLACE, span, op=MPI.MAX)
-                lo, hi = -int(span[0]), int(span[1])
-            if hi > lo:
-                self.comm.Allreduce(MPI.IN_PLACE, folds[lo:hi], op=MPI.SUM)
-        return folds[..., 0] + folds[..., 1]
-
-    def window_sums(self, folds: np.ndarray, offset: int) -> GridSums:
-        """Exact sums (collective) of a window's folds, kept on the nodes with mass.
-
-        Args:
-            folds: (n, k, 2) fold sums of the nodes ``offset .. offset + n - 1``, the same
-                window on every rank.
-            offset: First node of the window.
-        """
-        sums = self.exact_sum(folds)
+    def with_mass(self, nodes: np.ndarray, sums: np.ndarray) -> GridSums:
+        """Return the sums on the nodes with ``mass > 0`` (first column) of sums on ``nodes``."""
         inner = np.flatnonzero(sums[:, 0] > 0.0)
-        return GridSums(inner + offset, sums[inner], self.n_nodes)
+        return GridSums(nodes[inner], sums[inner], self.n_nodes, inner)
 
     def to_global(self, values: np.ndarray) -> np.ndarray:
         """Global array of a local nodal array (owned entries; collective)."""

@@ -37,6 +37,7 @@ from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
+from mpm.exchange import FoldExchange
 from mpm.forces import particle_forces, transfer_bounds
 from mpm.gimp import gimp_basis
 from mpm.grid import ParticleGrid
@@ -98,6 +99,7 @@ class MPMSolver:
         self._hess = np.zeros((0, 3)) if self.slope_g is None else self.slope_g.hess
         self._still = np.zeros(0) if self.still_g is None else self.still_g
         self.projector = GridProjector(disc.cells, disc.spacing)
+        self.exchange = FoldExchange(self.comm)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
         self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
@@ -109,6 +111,12 @@ class MPMSolver:
         self._refresh()
 
     # -- solver interface ------------------------------------------------------------------
+    @property
+    def _box_args(self) -> np.ndarray:
+        """The P2G box as the kernels take it: ``(row, column, rows, columns)``."""
+        box = self._box
+        return np.array([box.j0, box.i0, box.h, box.w], dtype=np.int64)
+
     @property
     def n_particles(self) -> int:
         """Global number of particles."""
@@ -260,9 +268,8 @@ class MPMSolver:
         mass = self.rho * p.volume
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
-        lo, hi = self._window
-        mom = self.nodal.exact_sum(p2g_momentum(*b.arrays, mass, p.u, p.v, lo, hi - lo,
-                                                ext))[sums.act - lo]
+        mom = self.exchange.sum(p2g_momentum(*b.arrays, mass, p.u, p.v, self._box_args,
+                                             ext))[sums.index]
         mass = sums.g[:, 0]
         vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
         self._zero_walls(vx, vy)
@@ -318,13 +325,14 @@ class MPMSolver:
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
         local = transfer_bounds(*b.arrays, mass, p.u, p.v, forces, p.area, p.volume)
-        bounds, self._window = p2g_bounds(local, self.comm)
-        ext = fold_extractors(bounds, self.splitter.next_id)
-        lo, hi = self._window
-        self._sums = sums = self.nodal.window_sums(
-            p2g(*b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, lo, hi - lo, ext),
-            lo)
-        self._own = sums.restrict(-local[11], local[12])  # the nodes this rank's particles reach
+        ext = fold_extractors(p2g_bounds(local, self.comm), self.splitter.next_id)
+        box = self._box = self.nodal.box(local[11:])
+        folds = p2g(*b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, self._box_args, ext)
+        totals = self.exchange.start(folds, box)
+        self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
+        # the nodes this rank's particles reach lie in its box's rows and columns
+        self._own = sums.restrict(box.j0 * box.nx1 + box.i0,
+                                  (box.j0 + box.h - 1) * box.nx1 + box.i0 + box.w)
         self._h = h = self.projector.project_nodes(sums.act, sums.g[:, 6])
         self.fields["h"].x.array[:] = self.nodal.to_local(h)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
@@ -344,21 +352,18 @@ def _amax(values: np.ndarray) -> float:
     return float(np.max(np.abs(values), initial=0.0))
 
 
-def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, tuple[int, int]]:
-    """Global bounds of any P2G contribution per column and the nodes written (collective).
+def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """Global bounds of any P2G contribution per column (collective: one max reduction).
 
     Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
     ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
-    depend on which rank holds which particle, and so would the exact sums' folds. One max
-    reduction gives the bounds and the window ``[lo, hi)`` of node indices any rank writes.
+    depend on which rank holds which particle, and so would the exact sums' folds.
 
     Args:
-        local: This rank's maxima from :func:`mpm.forces.transfer_bounds`.
+        local: This rank's maxima from :func:`mpm.forces.transfer_bounds` (the first 11).
         comm: Communicator.
     """
-    glob = np.concatenate([np.nan_to_num(local[:11], nan=np.inf, posinf=1e300), local[11:]])
+    glob = np.nan_to_num(np.array(local[:11]), nan=np.inf, posinf=1e300)
     comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
-    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume, lo, hi = glob
-    window = (int(-lo), int(hi)) if np.isfinite(hi) else (0, 0)
-    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area,
-                     volume]), window
+    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob
+    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume])

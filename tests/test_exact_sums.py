@@ -64,6 +64,7 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
     basis = GimpBasis(i0, j0, wx, 0 * wx, wy, 0 * wy, (nx, ny, 1.0, 1.0))
     nodes, weights, _ = basis.expand()
     n_nodes = (nx + 1) * (ny + 1)
+    box = np.array([0, 0, ny + 1, nx + 1])  # the whole grid: box position = node index
     mass = 10.0 ** RNG.uniform(-spread, 0, size=n_p)
     u, v = RNG.normal(size=n_p) * 30.0, RNG.normal(size=n_p)
     bounds = [np.abs(mass * u).max(), np.abs(mass * v).max()]
@@ -71,7 +72,7 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
 
     def total(idx_groups):  # "ranks": sum each group's folds, then the groups
         folds = sum(p2g_momentum(i0[g], j0[g], wx[g], 0 * wx[g], wy[g], 0 * wy[g], nx, ny, 1.0,
-                                 1.0, mass[g], u[g], v[g], 0, n_nodes, ext)
+                                 1.0, mass[g], u[g], v[g], box, ext)
                     for g in idx_groups)
         return folds[..., 0] + folds[..., 1]
 

@@ -12,8 +12,11 @@ import math
 import numpy as np
 from mpi4py import MPI
 
-from fem_runout.exact_sum import exact_total
+from fem_runout.exact_sum import exact_total, fold_extractors
+from mpm.exchange import FoldExchange
 from mpm.forces import transfer_bounds
+from mpm.kernels import p2g_momentum
+from mpm.nodal import NodalGrid
 from mpm.solver import p2g_bounds
 
 WORLD = MPI.COMM_WORLD
@@ -50,7 +53,37 @@ def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
                                           np.ascontiguousarray(forces[:, k]), area[k],
                                           volume[k]), comm)
 
-    whole, window = bounds(np.arange(n), MPI.COMM_SELF)
-    part, part_window = bounds(_share(n), WORLD)
-    assert np.array_equal(part, whole) and part_window == window == (0, 2 * (n + 1))
+    whole = bounds(np.arange(n), MPI.COMM_SELF)
+    assert np.array_equal(bounds(_share(n), WORLD), whole)
     assert whole[3] == 50.0 + 70.0 * 0.5  # body and stress (x |dN|) add up, whoever holds them
+
+
+def test_fold_exchange_sums_the_touched_nodes_with_the_bits_of_one_rank():
+    rng = np.random.default_rng(8)
+    n, nx, ny = 3000, 30, 20
+    i0, j0 = rng.integers(0, nx, size=n), rng.integers(0, ny, size=n)
+    j0[: n // 2] = rng.integers(0, 4, size=n // 2)  # two clusters: a box holding both is
+    j0[n // 2:], i0[n // 2:] = rng.integers(14, 17, size=n - n // 2), rng.integers(  # mostly
+        20, 26, size=n - n // 2)  # empty
+    wx, wy = rng.uniform(0.0, 1.0, size=(n, 3)), rng.uniform(0.0, 1.0, size=(n, 3))
+    wy[:, 2] = 0.0
+    mass, u, v = 10.0 ** rng.uniform(-8, 0, size=n), rng.normal(size=n), rng.normal(size=n)
+    ext = fold_extractors([np.abs(mass * u).max(), np.abs(mass * v).max()], n)
+
+    def run(k, comm):
+        nodal = NodalGrid.__new__(NodalGrid)
+        nodal.cells = (nx, ny)
+        bounds = [-j0[k].min(), np.minimum(j0[k] + 2, ny).max(), -i0[k].min(),
+                  np.minimum(i0[k] + 2, nx).max()] if k.size else [-np.inf] * 4
+        box = nodal.box(np.array(bounds, dtype=float))
+        folds = p2g_momentum(i0[k], j0[k], wx[k], 0 * wx[k], wy[k], 0 * wy[k], nx, ny, 1.0,
+                             1.0, mass[k], u[k], v[k],
+                             np.array([box.j0, box.i0, box.h, box.w]), ext)
+        exchange = FoldExchange(comm)
+        sums = exchange.start(folds, box)
+        return exchange.nodes, sums
+
+    nodes, sums = run(np.arange(n), MPI.COMM_SELF)
+    part_nodes, part_sums = run(_share(n), WORLD)
+    assert np.array_equal(part_nodes, nodes) and np.array_equal(part_sums, sums)
+    assert nodes.size < (nx + 1) * (ny + 1)  # only the touched nodes are exchanged
