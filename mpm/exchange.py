@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from mpi4py import MPI
 
@@ -39,6 +40,18 @@ class Box:
         return (self.j0 + local // max(self.w, 1)) * self.nx1 + self.i0 + local % max(self.w, 1)
 
 
+@numba.njit(cache=True)
+def _touched(flat):
+    """Rows with a non-zero entry."""
+    out = np.zeros(flat.shape[0], dtype=np.bool_)
+    for r in range(flat.shape[0]):
+        for c in range(flat.shape[1]):
+            if flat[r, c] != 0.0:
+                out[r] = True
+                break
+    return out
+
+
 class FoldExchange:
     """Add per-rank fold arrays of one box per rank over the ranks, on the touched nodes.
 
@@ -62,13 +75,15 @@ class FoldExchange:
             folds: (box nodes, k, 2) this rank's folds (:func:`mpm.kernels.p2g`).
             box: The box of the folds.
         """
-        flat = folds.reshape(folds.shape[0], -1)
-        self._take = np.flatnonzero(np.any(flat != 0.0, axis=1))
+        self._take = np.flatnonzero(_touched(folds.reshape(folds.shape[0], -1)))
         mine = box.nodes(self._take)
         if self.comm.size == 1:
             self.nodes, self._put = mine, np.arange(mine.size)
         else:
-            self.nodes = np.unique(np.concatenate(self.comm.allgather(mine)))
+            counts = np.array(self.comm.allgather(mine.size), dtype=np.int64)
+            every = np.empty(int(counts.sum()), dtype=np.int64)
+            self.comm.Allgatherv(mine, [every, counts])
+            self.nodes = np.unique(every)
             self._put = np.searchsorted(self.nodes, mine)
         return self.sum(folds)
 
