@@ -144,6 +144,7 @@ def build_discretization(
     extent: tuple[float, float, float, float],
     cells: tuple[int, int],
     boundary: dict[str, str],
+    owners: np.ndarray | None = None,
 ) -> Discretization:
     """Create the mesh, the Q1 space and every geometric array.
 
@@ -152,14 +153,21 @@ def build_discretization(
         extent: (xmin, xmax, ymin, ymax).
         cells: (nx, ny).
         boundary: Kind (``"open"``/``"wall"``) of each side.
+        owners: Rank of each structured cell ``j nx + i`` (:mod:`fem_runout.partition`), or
+            None for DOLFINx's partitioner.
 
     Returns:
         The discretization.
     """
     xmin, xmax, ymin, ymax = extent
+    partitioner = None
+    if owners is not None and comm.size > 1:
+        from fem_runout.partition import cell_partitioner
+
+        partitioner = cell_partitioner(owners, cells[0])
     msh = mesh.create_rectangle(
         comm, [[xmin, ymin], [xmax, ymax]], list(cells), mesh.CellType.quadrilateral,
-        ghost_mode=mesh.GhostMode.shared_facet,
+        ghost_mode=mesh.GhostMode.shared_facet, partitioner=partitioner,
     )
     V = fem.functionspace(msh, ("Lagrange", 1))
     tdim = msh.topology.dim

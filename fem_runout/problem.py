@@ -16,6 +16,7 @@ from fem_runout.errors import CaseError
 from fem_runout.initial import depth_below_surface
 from fem_runout.mesh import Discretization, build_discretization
 from fem_runout.parallel import agree_on_errors
+from fem_runout.partition import owners_or_none
 from fem_runout.physics.friction import FrictionLaw, friction_from_spec
 from fem_runout.physics.rheology import Bingham, rheology_from_spec
 from fem_runout.physics.slope import SlopeGeometry, slope_geometry
@@ -52,9 +53,9 @@ class Problem:
 
 def build_problem(case: Case, comm: MPI.Comm) -> Problem:
     """Discretize ``case`` and set up its initial state and physics (collective)."""
-    disc = build_discretization(
-        comm, case.domain.extent, case.domain.resolved_cells, dict(case.domain.sides)
-    )
+    extent, cells = case.domain.extent, case.domain.resolved_cells
+    owners = agree_on_errors(comm, lambda: owners_or_none(comm, case, extent, cells))
+    disc = build_discretization(comm, extent, cells, dict(case.domain.sides), owners)
     init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     x, y = disc.coords[:, 0], disc.coords[:, 1]
     u_fn, v_fn = case.initial.velocity_fns()

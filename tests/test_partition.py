@@ -1,0 +1,39 @@
+"""The mesh partition by the flow's path (issue 16): routing, travel angle, stripes."""
+
+import numpy as np
+
+from fem_runout.partition import PATH_HALF_WIDTH, reachable, strip_owners
+
+
+def test_routing_follows_the_steepest_descent_and_stops_at_the_travel_angle():
+    nx, ny, dx = 200, 41, 10.0
+    x = (np.arange(nx) + 0.5) * dx
+    ground = np.where(x < 500.0, 1000.0 - 0.6 * x, 700.0 - 0.1 * (x - 500.0))  # 31°, then 5.7°
+    z = np.tile(ground, (ny, 1)) + 0.01 * np.abs(np.arange(ny) - 20)[:, None]  # a gentle gully
+    source = np.zeros((ny, nx), dtype=bool)
+    source[20, 2] = True
+    angle = 12.0
+    path = reachable(z, source, (dx, dx), angle)
+    # the energy line from the release, falling at tan 12°, meets the 5.7° ground here:
+    tan = np.tan(np.radians(angle))
+    d = np.abs(x - x[2])
+    line = z[20, 2] - tan * d
+    stop = x[np.flatnonzero((line >= z[20]) & (x >= x[2]))[-1]]
+    reached = x[np.flatnonzero(path[20])]
+    assert abs(reached.max() - stop) <= dx  # within one cell of the exact stop
+    assert path[:, : 2].any() and not path[20 + PATH_HALF_WIDTH + 1:].any()  # a narrow path
+    assert path[20 - PATH_HALF_WIDTH:21 + PATH_HALF_WIDTH, 10].all()  # widened to 2 k + 1
+
+
+def test_stripes_across_the_path_give_every_rank_the_same_share_of_it():
+    nx, ny, cell = 300, 60, 10.0
+    jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    x, y = (ii.ravel() + 0.5) * cell, (jj.ravel() + 0.5) * cell
+    on_path = (np.abs(y - 300.0 - 0.2 * x) < 40.0) & (x < 2000.0)  # an oblique path
+    for parts in (2, 3):
+        owners = strip_owners(x, y, on_path.astype(float), parts, cell)
+        share = np.bincount(owners[on_path], minlength=parts) / on_path.sum()
+        assert np.abs(share - 1.0 / parts).max() < 0.12, share
+        # stripes: along the path the owner changes several times
+        along = owners[on_path][np.argsort(x[on_path])]
+        assert np.count_nonzero(np.diff(along)) >= 2 * parts - 1
