@@ -75,7 +75,8 @@ class FoldExchange:
             folds: (box nodes, k, 2) this rank's folds (:func:`mpm.kernels.p2g`).
             box: The box of the folds.
         """
-        self._take = np.flatnonzero(_touched(folds.reshape(folds.shape[0], -1)))
+        flat = folds.reshape(len(folds), int(np.prod(folds.shape[1:])))  # (also with none)
+        self._take = np.flatnonzero(_touched(flat))
         mine = box.nodes(self._take)
         if self.comm.size == 1:
             self.nodes, self._put = mine, np.arange(mine.size)
