@@ -7,6 +7,7 @@ kernels (low-order fluxes, FCT, particle transfers).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import basix
@@ -144,7 +145,7 @@ def build_discretization(
     extent: tuple[float, float, float, float],
     cells: tuple[int, int],
     boundary: dict[str, str],
-    owners: np.ndarray | None = None,
+    partitioner: Callable | None = None,
 ) -> Discretization:
     """Create the mesh, the Q1 space and every geometric array.
 
@@ -153,18 +154,13 @@ def build_discretization(
         extent: (xmin, xmax, ymin, ymax).
         cells: (nx, ny).
         boundary: Kind (``"open"``/``"wall"``) of each side.
-        owners: Rank of each structured cell ``j nx + i`` (:mod:`fem_runout.partition`), or
-            None for DOLFINx's partitioner.
+        partitioner: A DOLFINx cell partitioner (:mod:`fem_runout.partition`), or None for
+            DOLFINx's graph partitioner.
 
     Returns:
         The discretization.
     """
     xmin, xmax, ymin, ymax = extent
-    partitioner = None
-    if owners is not None and comm.size > 1:
-        from fem_runout.partition import cell_partitioner
-
-        partitioner = cell_partitioner(owners, cells[0])
     msh = mesh.create_rectangle(
         comm, [[xmin, ymin], [xmax, ymax]], list(cells), mesh.CellType.quadrilateral,
         ghost_mode=mesh.GhostMode.shared_facet, partitioner=partitioner,

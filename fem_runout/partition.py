@@ -11,13 +11,15 @@ the release is routed downhill, and a mass stops where the energy line, falling 
 travel angle ``α`` (Heim's *Fahrböschung*) along its path, meets the ground
 (:func:`reachable`). With ``α`` = :data:`REACH_ANGLE_DEG` (below the run-out angles of
 avalanches, 18-30°, and of most debris flows) the estimate holds the path. The mesh is then
-cut across the path's main direction (the principal axis of the path's cells) into pieces
-holding equal shares of the path (:func:`strip_owners`). On avaKot (TG2-PC, 2 ranks) the
-owned active cells summed over the run were 4.95 and 8.24 million with DOLFINx's partition,
-7.07 and 6.12 million with this one. Cutting the path lengthwise balanced the path's cells
-but not the flow (the wide release fan lay on one side); stripes across it dealt to the ranks
-in turn balanced the flow to 0.3 %, but their many edges made every ghost exchange of the
-whole vectors (DOLFINx's scatters) several times dearer, and the run slower.
+cut across the path's main direction (the principal axis of the path's cells) into pieces of
+equal length along it (:func:`strip_owners`). On avaKot (TG2-PC, 2 ranks) the owned active
+cells summed over the run are 4.96 and 8.22 million with DOLFINx's partition and with a cut
+at the median of the path's cells (the flow spends most of its time in the release fan and
+the deposit, not evenly along the path), and 7.07 and 6.12 million with pieces of equal
+length. Cutting the path lengthwise balanced the path's cells but not the flow (the wide
+release fan lay on one side); stripes across it dealt to the ranks in turn balanced the flow
+to 0.3 %, but their many edges made every ghost exchange of the whole vectors (DOLFINx's
+scatters) several times dearer, and the run slower.
 
 The partition changes only which rank computes which cell: the results do not depend on it
 (tested on 1, 2 and 3 ranks). It applies to cases with ``initial.release``; cases without a
@@ -30,9 +32,8 @@ from collections.abc import Callable
 
 import numba
 import numpy as np
-from mpi4py import MPI
 
-__all__ = ["REACH_ANGLE_DEG", "cell_partitioner", "reach_owners", "strip_owners"]
+__all__ = ["REACH_ANGLE_DEG", "cell_partitioner", "path_owners", "reachable", "strip_owners"]
 
 #: Travel angle [deg] bounding the reachable region (a lower bound of observed run-outs).
 REACH_ANGLE_DEG = 12.0
@@ -96,7 +97,7 @@ def reachable(z: np.ndarray, source: np.ndarray, spacing: tuple[float, float],
 
 
 def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) -> np.ndarray:
-    """Rank of every cell: pieces cut across the weighted cells' main axis, equal weight each.
+    """Rank of every cell: pieces of equal length along the weighted cells' main axis.
 
     Args:
         x: Cell centre x [m].
@@ -105,7 +106,8 @@ def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) 
         nparts: Number of ranks.
 
     Returns:
-        (n,) int32 owner ranks: ``nparts`` pieces in order along the path.
+        (n,) int32 owner ranks: ``nparts`` pieces in order along the path (cells beyond its
+        ends go to the first and last piece).
     """
     w = weight / weight.sum()
     mx, my = float(w @ x), float(w @ y)
@@ -113,34 +115,29 @@ def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) 
     _, vecs = np.linalg.eigh(cov)
     along = vecs[:, 1]  # the major axis: along the path
     s = (x - mx) * along[0] + (y - my) * along[1]
-    order = np.argsort(s, kind="stable")
-    cum = np.cumsum(w[order])
-    owner = np.empty(x.size, dtype=np.int32)
-    owner[order] = np.minimum((cum - 0.5 * w[order]) * nparts, nparts - 1).astype(np.int32)
-    return owner
+    lo, hi = s[weight > 0].min(), s[weight > 0].max()
+    piece = np.floor((s - lo) / (hi - lo) * nparts) if hi > lo else np.zeros_like(s)
+    return np.clip(piece, 0, nparts - 1).astype(np.int32)
 
 
-def reach_owners(case, extent: tuple[float, float, float, float], cells: tuple[int, int],
-                 nparts: int) -> np.ndarray | None:
-    """Owner of every structured cell (index ``j nx + i``) for a case, or None (no release).
+def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
+                cells: tuple[int, int], spacing: tuple[float, float],
+                nparts: int) -> np.ndarray | None:
+    """Owner of every structured cell (index ``j nx + i``), or None (nothing released).
 
-    Deterministic on every rank (the same arrays from the same case).
+    Args:
+        centres: (nx ny, 2) cell centres, row-major.
+        z: Elevation at the centres [m].
+        released: Release depth at the centres [m].
+        cells: ``(nx, ny)``.
+        spacing: ``(Δx, Δy)`` [m].
+        nparts: Number of ranks.
     """
-    from fem_runout.problem import initial_fields
-
-    if case.initial.release is None or nparts < 2:
-        return None
     nx, ny = cells
-    xmin, xmax, ymin, ymax = extent
-    jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
-    x = xmin + (ii.ravel() + 0.5) * (xmax - xmin) / nx
-    y = ymin + (jj.ravel() + 0.5) * (ymax - ymin) / ny
-    init = initial_fields(case, np.stack([x, y], axis=1))
-    reach = reachable(init["z"].reshape(ny, nx), (init["h"] > 0.0).reshape(ny, nx),
-                      ((xmax - xmin) / nx, (ymax - ymin) / ny)).ravel()
-    if not reach.any():
+    path = reachable(z.reshape(ny, nx), (released > 0.0).reshape(ny, nx), spacing).ravel()
+    if nparts < 2 or not path.any():
         return None
-    return strip_owners(x, y, reach.astype(float), nparts)
+    return strip_owners(centres[:, 0], centres[:, 1], path.astype(float), nparts)
 
 
 def cell_partitioner(owners: np.ndarray, nx: int) -> Callable:
@@ -174,8 +171,3 @@ def cell_partitioner(owners: np.ndarray, nx: int) -> Callable:
         return AdjacencyList_int32(data, offsets)
 
     return partition
-
-
-def owners_or_none(comm: MPI.Comm, case, extent, cells) -> np.ndarray | None:
-    """:func:`reach_owners` for ``comm`` (None on one rank)."""
-    return reach_owners(case, extent, cells, comm.size) if comm.size > 1 else None

@@ -16,7 +16,7 @@ from fem_runout.errors import CaseError
 from fem_runout.initial import depth_below_surface
 from fem_runout.mesh import Discretization, build_discretization
 from fem_runout.parallel import agree_on_errors
-from fem_runout.partition import owners_or_none
+from fem_runout.partition import cell_partitioner, path_owners
 from fem_runout.physics.friction import FrictionLaw, friction_from_spec
 from fem_runout.physics.rheology import Bingham, rheology_from_spec
 from fem_runout.physics.slope import SlopeGeometry, slope_geometry
@@ -54,8 +54,9 @@ class Problem:
 def build_problem(case: Case, comm: MPI.Comm) -> Problem:
     """Discretize ``case`` and set up its initial state and physics (collective)."""
     extent, cells = case.domain.extent, case.domain.resolved_cells
-    owners = agree_on_errors(comm, lambda: owners_or_none(comm, case, extent, cells))
-    disc = build_discretization(comm, extent, cells, dict(case.domain.sides), owners)
+    owners = agree_on_errors(comm, lambda: _path_owners(case, comm.size))
+    disc = build_discretization(comm, extent, cells, dict(case.domain.sides),
+                                None if owners is None else cell_partitioner(owners, cells[0]))
     init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     x, y = disc.coords[:, 0], disc.coords[:, 1]
     u_fn, v_fn = case.initial.velocity_fns()
@@ -70,6 +71,18 @@ def build_problem(case: Case, comm: MPI.Comm) -> Problem:
         rheology=rheology_from_spec(case.material.rheology, case.material.density),
         slope=slope, thin_depth=resolved_thin_depth(case, comm, init["h"]),
     )
+
+
+def _path_owners(case: Case, nparts: int) -> np.ndarray | None:
+    """Ranks of the cells for a case with a release (:mod:`fem_runout.partition`), else None."""
+    if nparts < 2 or case.initial.release is None:
+        return None
+    (xmin, xmax, ymin, ymax), (nx, ny) = case.domain.extent, case.domain.resolved_cells
+    dx, dy = (xmax - xmin) / nx, (ymax - ymin) / ny
+    jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    centres = np.stack([xmin + (ii.ravel() + 0.5) * dx, ymin + (jj.ravel() + 0.5) * dy], axis=1)
+    init = initial_fields(case, centres)
+    return path_owners(centres, init["z"], init["h"], (nx, ny), (dx, dy), nparts)
 
 
 def initial_fields(case: Case, coords: np.ndarray) -> dict[str, np.ndarray]:

@@ -4,6 +4,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.mesh import build_discretization
+from fem_runout.partition import cell_partitioner
 
 WORLD = MPI.COMM_WORLD
 
@@ -11,7 +12,8 @@ WORLD = MPI.COMM_WORLD
 def test_mesh_cells_go_to_the_ranks_the_owners_name():
     nx, ny = 24, 10
     owners = ((np.arange(nx * ny) % nx) // 4 % WORLD.size).astype(np.int32)  # stripes of 4
-    disc = build_discretization(WORLD, (0.0, 24.0, 0.0, 10.0), (nx, ny), {}, owners)
+    disc = build_discretization(WORLD, (0.0, 24.0, 0.0, 10.0), (nx, ny), {},
+                                cell_partitioner(owners, nx))
     centre = disc.coords[disc.cell_nodes].mean(axis=1)
     index = np.floor(centre[:, 1]).astype(int) * nx + np.floor(centre[:, 0]).astype(int)
     n_own = disc.n_owned_cells
