@@ -20,7 +20,36 @@ from fem_runout.mesh import Discretization, Side
 from mpm.exchange import Box
 from mpm.gimp import structured_nodes
 
-__all__ = ["GridSums", "NodalGrid"]
+__all__ = ["GridSums", "NodalGrid", "NodeBuffers"]
+
+
+class NodeBuffers:
+    """Global node arrays kept between steps; a write clears only what the last one wrote.
+
+    The flow covers a few thousand of the grid's nodes: allocating and zeroing whole arrays
+    every step cost as much as the work on the nodes, and grew with the DEM.
+
+    Args:
+        size: Length of the arrays.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._arrays: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def put(self, name: str, index: np.ndarray, values: np.ndarray | float) -> np.ndarray:
+        """Return array ``name`` with ``values`` at ``index``, zero elsewhere.
+
+        The array is valid until the next :meth:`put` of the same name.
+        """
+        array, last = self._arrays.get(name, (None, None))
+        if array is None:
+            array = np.zeros(self.size)
+        else:
+            array[last] = 0.0
+        array[index] = values
+        self._arrays[name] = (array, np.asarray(index))
+        return array
 
 
 @dataclass

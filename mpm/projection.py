@@ -278,24 +278,24 @@ class GridProjector:
         out[index] = self._blend(np.ascontiguousarray(b[index], dtype=float), window)
         return out
 
-    def project_nodes(self, nodes: np.ndarray, values: np.ndarray) -> np.ndarray:
+    def project_nodes(self, nodes: np.ndarray, values: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` of one column given on the nodes where it is not zero (sorted).
 
         Returns:
-            (n_nodes,) global field, >= 0.
+            ``(index, h)``: the window's nodes (global indices) and the field on them (>= 0;
+            zero elsewhere).
         """
         ny1, nx1 = self.shape
-        out = np.zeros(ny1 * nx1)
         if nodes.size == 0:
-            return out
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
         j, i = nodes // nx1, nodes % nx1
         window = self._bounds(int(j[0]), int(j[-1]), int(i.min()), int(i.max()))
         j0, j1, i0, i1 = window
         sub = np.zeros(((j1 - j0) * (i1 - i0), 1))
         sub[(j - j0) * (i1 - i0) + (i - i0), 0] = values
         index, _ = self._window_arrays(window)
-        out[index] = self._blend(sub, window)[:, 0]
-        return out
+        return index, self._blend(sub, window)[:, 0]
 
     def _blend(self, sub: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
         """Projection of a window's sums (row-major, (n, k)); sets :attr:`iterations`."""

@@ -43,7 +43,7 @@ from mpm.gimp import gimp_basis
 from mpm.grid import ParticleGrid
 from mpm.kernels import g2p_flip, g2p_gradient, gimp_interpolate, p2g, p2g_momentum
 from mpm.migrate import balanced_destinations, migrate
-from mpm.nodal import NodalGrid
+from mpm.nodal import GridSums, NodalGrid, NodeBuffers
 from mpm.particles import Particles
 from mpm.projection import GridProjector
 from mpm.split import DomainSplitter
@@ -100,6 +100,10 @@ class MPMSolver:
         self._still = np.zeros(0) if self.still_g is None else self.still_g
         self.projector = GridProjector(disc.cells, disc.spacing)
         self.exchange = FoldExchange(self.comm)
+        self.buffers = NodeBuffers(self.nodal.n_nodes)
+        self._local_of = np.full(self.nodal.n_nodes, -1, dtype=np.int64)  # global -> local dof
+        self._local_of[self.nodal.node_index] = np.arange(self.nodal.node_index.size)
+        self._written: dict[str, np.ndarray] = {}
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
         self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
@@ -172,11 +176,12 @@ class MPMSolver:
         mass = sums.g[:, 0]
         keep = 0.0  # PIC (seed eq. 38)
         if self.flip > 0.0:  # FLIP: the particles keep their velocity plus the nodal change
-            stopped = sums.full(((vx[sums.act] == 0.0) & (vy[sums.act] == 0.0)).astype(float))
+            stopped = self._put("stopped", sums, (vx[sums.act] == 0.0) & (vy[sums.act] == 0.0))
             keep = 1.0 - (1.0 - self.flip) * scale  # PIC next to nodes friction stopped
-            old_x, old_y = sums.full(sums.g[:, 1] / mass), sums.full(sums.g[:, 2] / mass)
+            old_x = self._put("old_x", sums, sums.g[:, 1] / mass)
+            old_y = self._put("old_y", sums, sums.g[:, 2] / mass)
         else:
-            stopped = old_x = old_y = np.zeros_like(vx)
+            stopped = old_x = old_y = self._put("zero", sums, 0.0)
         p.u, p.v = g2p_flip(*b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
         grad = g2p_gradient(*b.arrays, *self._remapped_velocity())
         self.update_depth_and_stress(dt, grad)
@@ -230,7 +235,7 @@ class MPMSolver:
                                                    h * vx, h * vy, dt, bed)
             hs = np.where(h > 0, h, 1.0)
             vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
-        return sums.full(vx), sums.full(vy)
+        return self._put("vx", sums, vx), self._put("vy", sums, vy)
 
     def _zero_walls(self, vx: np.ndarray, vy: np.ndarray) -> None:
         """Zero the wall-normal velocity at the walls' nodes with mass (in place)."""
@@ -273,7 +278,7 @@ class MPMSolver:
         mass = sums.g[:, 0]
         vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
         self._zero_walls(vx, vy)
-        return sums.full(vx), sums.full(vy)
+        return self._put("mvx", sums, vx), self._put("mvy", sums, vy)
 
     def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
         """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""
@@ -333,11 +338,27 @@ class MPMSolver:
         # the nodes this rank's particles reach lie in its box's rows and columns
         self._own = sums.restrict(box.j0 * box.nx1 + box.i0,
                                   (box.j0 + box.h - 1) * box.nx1 + box.i0 + box.w)
-        self._h = h = self.projector.project_nodes(sums.act, sums.g[:, 6])
-        self.fields["h"].x.array[:] = self.nodal.to_local(h)
+        index, values = self.projector.project_nodes(sums.act, sums.g[:, 6])
+        self._h = h = self.buffers.put("h", index, values)
+        self._write_field("h", index, values)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
-            q = sums.full(h[sums.act] * sums.g[:, col] / sums.g[:, 0])
-            self.fields[name].x.array[:] = self.nodal.to_local(q)
+            self._write_field(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
+
+    def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
+        """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""
+        return self.buffers.put(name, sums.act, values)
+
+    def _write_field(self, name: str, nodes: np.ndarray, values: np.ndarray) -> None:
+        """Set field ``name`` to ``values`` at the global ``nodes``, zero elsewhere.
+
+        Owned and ghost dofs; only the dofs written last time and now are touched.
+        """
+        local = self._local_of[nodes]
+        mine = local >= 0
+        array = self.fields[name].x.array
+        array[self._written.get(name, local[:0])] = 0.0
+        array[local[mine]] = values[mine]
+        self._written[name] = local[mine]
 
     def _global_geometry(self, slope: SlopeGeometry) -> SlopeGeometry:
         """Return the geometry on the global node array (collective)."""
