@@ -64,11 +64,11 @@ def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, f
     from mpi4py import MPI
 
     imap = solver.V.dofmap.index_map
-    n = imap.size_local
-    h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
+    idx = solver.flow_dofs()  # the state is zero elsewhere
+    h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
     wet = h > depth
     q2 = hu[wet] ** 2 + hv[wet] ** 2
-    terms = np.asarray(solver.lumped_mass[:n])[wet] * q2 / h[wet] if energy else q2[:0]
+    terms = np.asarray(solver.lumped_mass)[idx][wet] * q2 / h[wet] if energy else q2[:0]
     local = np.array([float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0,
                       float(np.max(terms, initial=0.0))])
     solver.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)

@@ -69,6 +69,14 @@ class Solver(Protocol):
         """Return to a :meth:`snapshot` (collective: ghost values are refreshed)."""
         ...
 
+    def flow_dofs(self) -> np.ndarray:
+        """Owned dofs (sorted local indices) outside which ``h``, ``hu``, ``hv`` are zero.
+
+        Local, no MPI. Outputs and diagnostics do their per-step work on these only, so a dry
+        DEM costs them nothing (every owned dof is a valid answer).
+        """
+        ...
+
     def health(self) -> str | None:
         """Return a message if the state is bad (NaN, negative depth, collapsed column), else None.
 

@@ -202,6 +202,11 @@ class MPMSolver:
         self._problem = None
         self._refresh()
 
+    def flow_dofs(self) -> np.ndarray:
+        """Owned dofs of the projection's window (the fields are zero outside it)."""
+        local = self._written.get("h", np.zeros(0, dtype=np.int64))
+        return np.sort(local[local < self.V.dofmap.index_map.size_local])
+
     def health(self) -> str | None:
         """Return a message if a particle has NaN or a collapsed column, else None."""
         local = self._problem or ""

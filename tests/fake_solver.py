@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import numpy as np
 import ufl
 from dolfinx import fem, la, mesh
 
@@ -27,6 +28,8 @@ def fake_solver(comm, formulas, cells=(8, 4), size=(4.0, 2.0)):
     mass = fem.assemble_vector(fem.form(ufl.TestFunction(V) * ufl.dx))
     mass.scatter_reverse(la.InsertMode.add)
     mass.scatter_forward()
+    n_owned = V.dofmap.index_map.size_local
     return SimpleNamespace(
-        comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0
+        comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0,
+        flow_dofs=lambda: np.arange(n_owned),
     )

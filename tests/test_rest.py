@@ -19,7 +19,8 @@ class _Decaying:
         self.base = fake_solver(MPI.COMM_WORLD, {"h": lambda x, y: 1.0 + 0 * x,
                                                  "hu": lambda x, y: 1.0 + 0 * x,
                                                  "hv": lambda x, y: 0 * x, "z": lambda x, y: 0 * x})
-        for name in ("comm", "mesh", "V", "fields", "lumped_mass", "outflow_volume"):
+        for name in ("comm", "mesh", "V", "fields", "lumped_mass", "outflow_volume",
+                     "flow_dofs"):
             setattr(self, name, getattr(self.base, name))
         self.t = 0.0
 

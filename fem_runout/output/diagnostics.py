@@ -54,13 +54,13 @@ def nodal_speed(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, threshold: float)
 
 
 def _owned(solver: Solver, x: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-    """Owned slices of ``x, m, h, hu, hv`` of a solver (``x`` given: not tabulated again)."""
-    n = solver.V.dofmap.index_map.size_local
+    """``x, m, h, hu, hv`` of a solver on its flow's owned dofs (``x``: all owned x)."""
     if x is None:
         x = owned_x(solver)
-    m = np.asarray(solver.lumped_mass[:n], dtype=np.float64)
-    h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
-    return x, m, h, hu, hv
+    idx = solver.flow_dofs()
+    m = np.asarray(solver.lumped_mass, dtype=np.float64)[idx]
+    h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
+    return x[idx], m, h, hu, hv
 
 
 def owned_x(solver: Solver) -> np.ndarray:
@@ -97,7 +97,7 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
     speed = np.sqrt(q2) / h[wet]
     local_max = np.array(
         [
-            h.max() if h.size else -np.inf,
+            max(h.max(initial=0.0), 0.0) if solver.V.dofmap.index_map.size_local else -np.inf,
             speed.max() if speed.size else 0.0,
             x[wet].max() if speed.size else -np.inf,
         ],
@@ -219,11 +219,12 @@ class PeakTracker:
         self._V: fem.FunctionSpace | None = None
 
     def _update(self, solver: Solver) -> None:
-        """Fold the current state into the envelopes."""
-        n = solver.V.dofmap.index_map.size_local
-        h, hu, hv = (solver.fields[k].x.array[:n].real for k in ("h", "hu", "hv"))
-        np.maximum(self.peak_depth, h, out=self.peak_depth)
-        np.maximum(self.peak_speed, nodal_speed(h, hu, hv, self.threshold), out=self.peak_speed)
+        """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
+        idx = solver.flow_dofs()
+        h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
+        self.peak_depth[idx] = np.maximum(self.peak_depth[idx], h)
+        self.peak_speed[idx] = np.maximum(self.peak_speed[idx],
+                                          nodal_speed(h, hu, hv, self.threshold))
 
     def functions(self) -> tuple[fem.Function, fem.Function]:
         """Return the envelopes as Q1 functions ``peak_depth``, ``peak_speed`` (collective).
@@ -261,7 +262,7 @@ class PeakTracker:
         """Initialise the envelopes with the initial state."""
         self._V = solver.V
         n = solver.V.dofmap.index_map.size_local
-        self.peak_depth = np.full(n, -np.inf)
+        self.peak_depth = np.zeros(n)  # depths are >= 0; zero outside the flow
         self.peak_speed = np.zeros(n)
         self._update(solver)
 

@@ -197,14 +197,17 @@ class HazardMaps:
         self.step(solver, info)
 
     def step(self, solver: Solver, info: StepInfo) -> None:
-        """Fold the current state into the envelopes."""
-        h, hu, hv, _ = self._owned(solver)
+        """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
+        idx = solver.flow_dofs()
+        h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
         tr = self._track
         speed = nodal_speed(h, hu, hv, self.threshold)
-        np.maximum(tr["peak_depth"], h, out=tr["peak_depth"])
-        np.maximum(tr["peak_speed"], speed, out=tr["peak_speed"])
-        np.maximum(tr["peak_pressure"], self.density * speed**2, out=tr["peak_pressure"])
-        tr["arrival_time"][np.isnan(tr["arrival_time"]) & (h > self.threshold)] = info.t
+        tr["peak_depth"][idx] = np.maximum(tr["peak_depth"][idx], h)
+        tr["peak_speed"][idx] = np.maximum(tr["peak_speed"][idx], speed)
+        tr["peak_pressure"][idx] = np.maximum(tr["peak_pressure"][idx], self.density * speed**2)
+        arrival = tr["arrival_time"][idx]
+        arrival[np.isnan(arrival) & (h > self.threshold)] = info.t
+        tr["arrival_time"][idx] = arrival
 
     def output(self, solver: Solver, info: StepInfo) -> None:
         """Nothing to do at output times."""

@@ -139,6 +139,18 @@ class TG2Solver:
         self.transport.set_state(snap[0])
         self.transport.outflow_volume = snap[1]
 
+    def flow_dofs(self) -> np.ndarray:
+        """Owned nodes of the transport's active set (the state is zero outside it).
+
+        With a rheology the reaction step works on every node: then every owned node. (No
+        reaction at all: frictionless transport, also only the active set.)
+        """
+        n = self.V.dofmap.index_map.size_local
+        if self.reaction is not None and self.reaction.rheology is not None:
+            return np.arange(n)
+        nodes = self.transport.active.nodes
+        return nodes[nodes < n]
+
     def health(self) -> str | None:
         """Check the state (collective): a message if it has NaN or negative depth, else None."""
         own = slice(0, self.disc.n_owned_nodes)
