@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fem_runout.callbacks import Callback, StepInfo
+from fem_runout.callbacks import Callback, StepInfo, flow_index
 from fem_runout.errors import SimulationError
 from fem_runout.exact_sum import exact_total
 from fem_runout.solver_api import Solver
@@ -64,7 +64,7 @@ def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, f
     from mpi4py import MPI
 
     imap = solver.V.dofmap.index_map
-    idx = solver.flow_dofs()  # the state is zero elsewhere
+    idx = flow_index(solver)  # the state is zero elsewhere
     h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
     wet = h > depth
     q2 = hu[wet] ** 2 + hv[wet] ** 2

@@ -104,6 +104,7 @@ class MPMSolver:
         self._local_of = np.full(self.nodal.n_nodes, -1, dtype=np.int64)  # global -> local dof
         self._local_of[self.nodal.node_index] = np.arange(self.nodal.node_index.size)
         self._written: dict[str, np.ndarray] = {}
+        self._windows: dict[tuple[int, int, int], np.ndarray] = {}
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
         self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
@@ -204,8 +205,7 @@ class MPMSolver:
 
     def flow_dofs(self) -> np.ndarray:
         """Owned dofs of the projection's window (the fields are zero outside it)."""
-        local = self._written.get("h", np.zeros(0, dtype=np.int64))
-        return np.sort(local[local < self.V.dofmap.index_map.size_local])
+        return self._flow
 
     def health(self) -> str | None:
         """Return a message if a particle has NaN or a collapsed column, else None."""
@@ -346,12 +346,23 @@ class MPMSolver:
         index, values = self.projector.project_nodes(sums.act, sums.g[:, 6])
         self._h = h = self.buffers.put("h", index, values)
         self._write_field("h", index, values)
+        self._flow = self._owned_dofs(index)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
             self._write_field(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
 
     def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
         """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""
         return self.buffers.put(name, sums.act, values)
+
+    def _owned_dofs(self, nodes: np.ndarray) -> np.ndarray:
+        """Sorted owned dofs of a projection window's global nodes (cached per window)."""
+        key = (nodes.size, int(nodes[0]), int(nodes[-1])) if nodes.size else (0, 0, 0)
+        if key not in self._windows:
+            local = self._local_of[nodes]
+            if len(self._windows) > 64:
+                self._windows.clear()
+            self._windows[key] = np.sort(local[(local >= 0) & (local < self.nodal._n_owned)])
+        return self._windows[key]
 
     def _write_field(self, name: str, nodes: np.ndarray, values: np.ndarray) -> None:
         """Set field ``name`` to ``values`` at the global ``nodes``, zero elsewhere.

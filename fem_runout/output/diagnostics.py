@@ -13,6 +13,7 @@ from mpi4py import MPI  # before dolfinx
 import numpy as np
 from dolfinx import fem, io
 
+from fem_runout.callbacks import flow_index
 from fem_runout.output.gather import gather_nodal
 
 if TYPE_CHECKING:
@@ -57,7 +58,7 @@ def _owned(solver: Solver, x: np.ndarray | None = None) -> tuple[np.ndarray, ...
     """``x, m, h, hu, hv`` of a solver on its flow's owned dofs (``x``: all owned x)."""
     if x is None:
         x = owned_x(solver)
-    idx = solver.flow_dofs()
+    idx = flow_index(solver)
     m = np.asarray(solver.lumped_mass, dtype=np.float64)[idx]
     h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
     return x[idx], m, h, hu, hv
@@ -220,7 +221,7 @@ class PeakTracker:
 
     def _update(self, solver: Solver) -> None:
         """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
-        idx = solver.flow_dofs()
+        idx = flow_index(solver)
         h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
         self.peak_depth[idx] = np.maximum(self.peak_depth[idx], h)
         self.peak_speed[idx] = np.maximum(self.peak_speed[idx],

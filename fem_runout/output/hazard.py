@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fem_runout.callbacks import flow_index
 from fem_runout.output.diagnostics import nodal_speed
 from fem_runout.output.gather import gather_nodal, global_sum
 from fem_runout.terrain.dem import sample_grid
@@ -198,7 +199,7 @@ class HazardMaps:
 
     def step(self, solver: Solver, info: StepInfo) -> None:
         """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
-        idx = solver.flow_dofs()
+        idx = flow_index(solver)
         h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
         tr = self._track
         speed = nodal_speed(h, hu, hv, self.threshold)
