@@ -21,21 +21,12 @@ __all__ = ["particle_forces", "transfer_bounds"]
 
 
 @numba.njit(cache=True)
-def particle_forces(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, z, hess, still, rho, g, volume, h,
+def particle_forces(basis, z, hess, still, rho, g, volume, h,
                     u, v, sxx, syy, sxy):
     """Body force and force tensor per particle (seed eqs. 26, 34; eq. 46 with ``still``).
 
     Args:
-        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
-        j0: (n,) first node row.
-        wx: (n, 3) weight factors along x.
-        dwx: (n, 3) their derivatives [1/m].
-        wy: (n, 3) weight factors along y.
-        dwy: (n, 3) their derivatives.
-        nx: Cells along x.
-        ny: Cells along y.
-        dx: Cell width [m].
-        dy: Cell height [m].
+        basis: The factored GIMP basis, :attr:`mpm.gimp.GimpBasis.arrays`.
         z: Nodal elevation.
         hess: (n_nodes, 3) nodal ``(Z_xx, Z_xy, Z_yy)`` for the slope-consistent form, where
             ``G_p = cos²θ max(g + u·H·u, 0)`` replaces ``g``; (0, 3) for the seed's form.
@@ -55,6 +46,7 @@ def particle_forces(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, z, hess, still, rh
         gravity ``G_p`` (``g`` in the seed's form); the largest bed slope ``|∇Z|`` and the
         largest wave speed ``|v_p| + sqrt(max(G_p, g) h_p)`` over the particles.
     """
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     n = i0.size
     out = np.empty((5, n))
     gp = np.empty(n)
@@ -110,17 +102,16 @@ def _bound(m, x):
 
 
 @numba.njit(cache=True)
-def transfer_bounds(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, forces, area,
+def transfer_bounds(basis, mass, u, v, forces, area,
                     volume):
     """Per-rank maxima for :func:`mpm.solver.p2g_bounds`, one pass.
-
-    The basis arguments are those of :func:`particle_forces`.
 
     Returns:
         (15,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|``, a bound
         of ``|dN|``, ``max |A|, |V|``, then the nodes' ``-min(row), max(row), -min(column),
         max(column)`` (``-inf`` with no particle).
     """
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     b = np.zeros(15)
     b[11:] = -np.inf
     for p in range(i0.size):

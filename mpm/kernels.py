@@ -45,21 +45,12 @@ def _box_index(i0, j0, a, b, nx, ny, box):
 
 
 @numba.njit(cache=True)
-def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sxx, syy, sxy,
+def p2g(basis, mass, u, v, body_x, body_y, sxx, syy, sxy,
         area, volume, box, ext):
     """Particle-to-grid sums (seed eqs. 33-34), as exact two-fold partial sums.
 
     Args:
-        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
-        j0: (n,) first node row.
-        wx: (n, 3) weight factors along x.
-        dwx: (n, 3) their derivatives [1/m].
-        wy: (n, 3) weight factors along y.
-        dwy: (n, 3) their derivatives.
-        nx: Cells along x.
-        ny: Cells along y.
-        dx: Cell width [m].
-        dy: Cell height [m].
+        basis: The factored GIMP basis, :attr:`mpm.gimp.GimpBasis.arrays`.
         mass: ``m_p`` [kg].
         u: x-velocity [m/s].
         v: y-velocity [m/s].
@@ -80,6 +71,7 @@ def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sx
         their sum over ranks and folds (:class:`mpm.exchange.FoldExchange`) does not depend
         on the order.
     """
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 7, 2))
     for p in range(i0.size):
         for b in range(3):
@@ -102,11 +94,12 @@ def p2g(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, body_x, body_y, sx
 
 
 @numba.njit(cache=True)
-def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, box, ext):
+def p2g_momentum(basis, mass, u, v, box, ext):
     """Nodal momentum ``Σ_p m_p v_p N_i`` only, (box nodes, 2, 2) folds (MUSL re-mapping).
 
     The nodes are those of ``box`` (see :func:`p2g`).
     """
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 2, 2))
     for p in range(i0.size):
         for b in range(3):
@@ -123,7 +116,7 @@ def p2g_momentum(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, mass, u, v, box, ext)
 
 
 @numba.njit(cache=True)
-def g2p_flip(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy, old_x, old_y, stopped, pu, pv,
+def g2p_flip(basis, vx, vy, old_x, old_y, stopped, pu, pv,
              keep):
     """FLIP/PIC blend of the grid-to-particle velocity (seed eq. 38 with FLIP), one pass.
 
@@ -132,16 +125,7 @@ def g2p_flip(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy, old_x, old_y, sto
     (``keep = 0``: PIC, seed eq. 38).
 
     Args:
-        i0: (n,) first node column of each particle (:class:`mpm.gimp.GimpBasis`).
-        j0: (n,) first node row.
-        wx: (n, 3) weight factors along x.
-        dwx: (n, 3) their derivatives [1/m].
-        wy: (n, 3) weight factors along y.
-        dwy: (n, 3) their derivatives.
-        nx: Cells along x.
-        ny: Cells along y.
-        dx: Cell width [m].
-        dy: Cell height [m].
+        basis: The factored GIMP basis, :attr:`mpm.gimp.GimpBasis.arrays`.
         vx: Nodal x-velocity at the end of the step.
         vy: Nodal y-velocity at the end of the step.
         old_x: Nodal x-velocity mapped from the particles at the start of the step.
@@ -154,6 +138,7 @@ def g2p_flip(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy, old_x, old_y, sto
     Returns:
         ``(u, v)``: the new particle velocity.
     """
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     n = i0.size
     u_out = np.empty(n)
     v_out = np.empty(n)
@@ -179,8 +164,9 @@ def g2p_flip(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy, old_x, old_y, sto
 
 
 @numba.njit(cache=True)
-def g2p_gradient(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy):
+def g2p_gradient(basis, vx, vy):
     """Velocity gradient ``grad[p, a, b] = Σ_i v_{i,a} ∂_b N_i(x_p)`` at the particles."""
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     n = i0.size
     grad = np.empty((n, 2, 2))
     for p in range(n):
@@ -202,8 +188,9 @@ def g2p_gradient(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, vx, vy):
 
 
 @numba.njit(cache=True)
-def gimp_interpolate(i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy, values):
+def gimp_interpolate(basis, values):
     """Q1 (GIMP) interpolant ``Σ_i values_i S_ip`` at the particles."""
+    i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     n = i0.size
     out = np.empty(n)
     for p in range(n):

@@ -137,7 +137,7 @@ class MPMSolver:
 
     def particle_elevation(self) -> np.ndarray:
         """Terrain elevation at this rank's particles (Q1 interpolation; local, no MPI)."""
-        return gimp_interpolate(*self._basis.arrays, self.z_g)
+        return gimp_interpolate(self._basis.arrays, self.z_g)
 
     def _step_limits(self) -> tuple[float, float]:
         """``(stable step, transport step)`` of the current state (collective, no side effect).
@@ -183,8 +183,8 @@ class MPMSolver:
             old_y = self._put("old_y", sums, sums.g[:, 2] / mass)
         else:
             stopped = old_x = old_y = self._put("zero", sums, 0.0)
-        p.u, p.v = g2p_flip(*b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
-        grad = g2p_gradient(*b.arrays, *self._remapped_velocity())
+        p.u, p.v = g2p_flip(b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
+        grad = g2p_gradient(b.arrays, *self._remapped_velocity())
         self.update_depth_and_stress(dt, grad)
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
@@ -278,7 +278,7 @@ class MPMSolver:
         mass = self.rho * p.volume
         ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
                          self.comm)
-        mom = self.exchange.sum(p2g_momentum(*b.arrays, mass, p.u, p.v, self._box_args,
+        mom = self.exchange.sum(p2g_momentum(b.arrays, mass, p.u, p.v, self._box_args,
                                              ext))[sums.index]
         mass = sums.g[:, 0]
         vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
@@ -331,13 +331,13 @@ class MPMSolver:
         p, g = self.particles, self.grid
         self._basis = b = gimp_basis(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx, g.ny, g.dx, g.dy)
         forces, self._gp, self._slope, self._speed = particle_forces(
-            *b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
+            b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
-        local = transfer_bounds(*b.arrays, mass, p.u, p.v, forces, p.area, p.volume)
+        local = transfer_bounds(b.arrays, mass, p.u, p.v, forces, p.area, p.volume)
         ext = fold_extractors(p2g_bounds(local, self.comm), self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
-        folds = p2g(*b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, self._box_args, ext)
+        folds = p2g(b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, self._box_args, ext)
         totals = self.exchange.start(folds, box)
         self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
         # the nodes this rank's particles reach lie in its box's rows and columns

@@ -71,8 +71,8 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
     ext = extractors(bounds, n_p, MPI.COMM_SELF)
 
     def total(idx_groups):  # "ranks": sum each group's folds, then the groups
-        folds = sum(p2g_momentum(i0[g], j0[g], wx[g], 0 * wx[g], wy[g], 0 * wy[g], nx, ny, 1.0,
-                                 1.0, mass[g], u[g], v[g], box, ext)
+        folds = sum(p2g_momentum((i0[g], j0[g], wx[g], 0 * wx[g], wy[g], 0 * wy[g], nx, ny, 1.0,
+                                  1.0), mass[g], u[g], v[g], box, ext)
                     for g in idx_groups)
         return folds[..., 0] + folds[..., 1]
 

@@ -48,8 +48,8 @@ def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
     wx, dwx = np.full((n, 3), 0.5), np.ones((n, 3))
 
     def bounds(k, comm):
-        return p2g_bounds(transfer_bounds(i0[k], j0[k], wx[k], dwx[k], wx[k], dwx[k], n, 1, 1.0,
-                                          1.0, mass[k], u[k], v[k],
+        return p2g_bounds(transfer_bounds((i0[k], j0[k], wx[k], dwx[k], wx[k], dwx[k], n, 1, 1.0,
+                                           1.0), mass[k], u[k], v[k],
                                           np.ascontiguousarray(forces[:, k]), area[k],
                                           volume[k]), comm)
 
@@ -76,8 +76,8 @@ def test_fold_exchange_sums_the_touched_nodes_with_the_bits_of_one_rank():
         bounds = [-j0[k].min(), np.minimum(j0[k] + 2, ny).max(), -i0[k].min(),
                   np.minimum(i0[k] + 2, nx).max()] if k.size else [-np.inf] * 4
         box = nodal.box(np.array(bounds, dtype=float))
-        folds = p2g_momentum(i0[k], j0[k], wx[k], 0 * wx[k], wy[k], 0 * wy[k], nx, ny, 1.0,
-                             1.0, mass[k], u[k], v[k],
+        folds = p2g_momentum((i0[k], j0[k], wx[k], 0 * wx[k], wy[k], 0 * wy[k], nx, ny, 1.0,
+                              1.0), mass[k], u[k], v[k],
                              np.array([box.j0, box.i0, box.h, box.w]), ext)
         exchange = FoldExchange(comm)
         sums = exchange.start(folds, box)
