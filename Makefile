@@ -16,7 +16,7 @@ RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_assembly_mpi.py te
 	tests/mpi/test_exact_sums_mpi.py tests/mpi/test_partition_mpi.py tests/mpi/test_terrain_mpi.py \
 	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py
 
-.PHONY: setup demo test test-serial test-mpi lint bench clean
+.PHONY: setup demo test test-serial test-mpi lint bench bench-peers clean
 
 setup: $(VENV)/.installed
 
@@ -56,6 +56,16 @@ bench: setup
 	@if [ -f "$${FEM_RUNOUT_DATA:-../shared/data}/avaKot/avaKot.asc" ]; then \
 		$(PY) -m fem_runout.bench footprint --out docs/performance.md; \
 	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; fi
+
+# peers side by side (optional, not in `make test`): GeoClaw (clawpack built from its sdist; needs
+# gfortran from the system's package manager) and AvaFrame com1DFA in their own virtualenvs under
+# ~/.cache/fem_runout/peers, then alternating runs with both methods -> docs/peers.md (~15 min)
+PEER_ROUNDS ?= 3
+bench-peers: setup
+	bash peers/geoclaw/setup.sh
+	bash peers/com1dfa/setup.sh
+	$(PY) -m fem_runout.bench side-by-side --rounds $(PEER_ROUNDS) --out docs/peers.md \
+		--figure docs/figures/peers_avakot.png
 
 clean:
 	rm -rf results .pytest_cache

@@ -11,6 +11,7 @@ from fem_runout.bench import (
     footprint,
     peers,
     real_case,
+    side_by_side,
     step_cost,
     suite,
     tg2_report,
@@ -25,6 +26,7 @@ COMMANDS: dict[str, ModuleType] = {
     "before-after": before_after,
     "peers": peers,
     "footprint": footprint,
+    "side-by-side": side_by_side,
 }
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 

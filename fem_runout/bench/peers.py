@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["HELP", "add_arguments", "main", "raster_metrics"]
+__all__ = ["HELP", "add_arguments", "depth_maps_figure", "main", "our_metrics", "peer_metrics",
+           "raster_metrics"]
 
 HELP = "compare the methods' runs with a peer model's (com1DFA) from their rasters"
 BEGIN, END = "<!-- peers -->", "<!-- /peers -->"
@@ -71,7 +72,8 @@ def raster_metrics(depth: np.ndarray, speed: np.ndarray, release: np.ndarray, z:
     return out
 
 
-def _peer(folder: Path) -> tuple[dict[str, float], np.ndarray, Any]:
+def peer_metrics(folder: Path) -> tuple[dict[str, float], np.ndarray, Any]:
+    """Metrics, peak thickness and transform of a com1DFA run (``run_avakot.py``'s folder)."""
     depth, tr = _read(folder / "pft.tif")
     speed, _ = _read(folder / "pfv.tif")
     release, _ = _read(folder / "relth.tif")
@@ -83,7 +85,8 @@ def _peer(folder: Path) -> tuple[dict[str, float], np.ndarray, Any]:
     return m, depth, tr
 
 
-def _ours(folder: Path, dem: Path | None) -> tuple[dict[str, float], np.ndarray, Any]:
+def our_metrics(folder: Path, dem: Path | None = None) -> tuple[dict[str, float], np.ndarray, Any]:
+    """Metrics, peak slope-normal thickness and transform of one of our output folders."""
     import yaml
 
     depth, tr = _read(folder / "peak_depth_normal.tif")
@@ -118,7 +121,8 @@ def _table(rows: dict[str, dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
-def _figure(maps: dict[str, tuple[np.ndarray, Any]], path: Path) -> None:
+def depth_maps_figure(maps: dict[str, tuple[np.ndarray, Any]], path: Path) -> None:
+    """Save the peak-thickness maps (name -> (raster, transform)) side by side to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -144,7 +148,8 @@ def main(args: argparse.Namespace) -> int:
     """Compute the table (and figure), print it, write it between the doc's markers."""
     rows, maps = {}, {}
     try:
-        for specs, read in ((args.peer, _peer), (args.run, lambda f: _ours(f, args.dem))):
+        ours = lambda f: our_metrics(f, args.dem)  # noqa: E731
+        for specs, read in ((args.peer, peer_metrics), (args.run, ours)):
             for spec in specs:
                 name, sep, folder = spec.rpartition("=")
                 if not sep or not name:
@@ -160,5 +165,5 @@ def main(args: argparse.Namespace) -> int:
         a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
         args.doc.write_text(text[:a] + "\n" + table + "\n" + text[b:])
     if args.figure is not None:
-        _figure({k: tuple(v) for k, v in maps.items()}, args.figure)
+        depth_maps_figure({k: tuple(v) for k, v in maps.items()}, args.figure)
     return 0
