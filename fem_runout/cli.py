@@ -1,7 +1,9 @@
 """Command line: ``python -m fem_runout CASE.yaml [--out DIR] [--method M] [--set k=v ...]``.
 
 ``python -m fem_runout compare CASE.yaml [--out DIR] [--overwrite]`` runs the case with every
-implemented method and writes a side-by-side comparison (:mod:`fem_runout.compare`).
+implemented method and writes a side-by-side comparison (:mod:`fem_runout.compare`);
+``python -m fem_runout ensemble CASE.yaml ENSEMBLE.yaml`` runs an ensemble
+(:mod:`fem_runout.ensemble`).
 
 Exit codes: 0 success, 1 unexpected failure, 2 bad input (case file, override, option,
 output directory), 3 the simulation had to stop (:class:`~fem_runout.errors.SimulationError`).
@@ -143,6 +145,17 @@ def _compare(argv: list[str]) -> int:
         return _report_crash(world)
 
 
+def _ensemble(argv: list[str]) -> int:
+    """Run ``python -m fem_runout ensemble ...`` (exit codes as for a run)."""
+    world = _World()
+    try:
+        from fem_runout.ensemble.cli import main as ensemble_main
+
+        return ensemble_main(argv)
+    except Exception:
+        return _report_crash(world)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line.
 
@@ -155,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["compare"]:
         return _compare(argv[1:])
+    if argv[:1] == ["ensemble"]:
+        return _ensemble(argv[1:])
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help or a usage error (argparse already printed it)

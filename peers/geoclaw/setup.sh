@@ -69,6 +69,7 @@ EOF
 "$VPY" -c 'import importlib.metadata as m, clawpack.geoclaw.data, clawpack.pyclaw.solution; print("clawpack", m.version("clawpack"), "OK")'
 
 # 4. make sure GeoClaw's Fortran compiles and links: build (and cache) the dam-break xgeoclaw
-CLAW="$CLAW" FC=gfortran "$VPY" "$HERE/run_dam_break.py" --build-only
+# (from the venv's folder: importing clawpack writes pyclaw.log into the current folder)
+(cd "$PEERS_VENV" && CLAW="$CLAW" FC=gfortran "$VPY" "$HERE/run_dam_break.py" --build-only)
 echo "PEERS_VENV=$PEERS_VENV"
 echo "CLAW=$CLAW   (source $PEERS_VENV/geoclaw.env)"
