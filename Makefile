@@ -14,7 +14,8 @@ DEMO_CASE ?= cases/inclined_dam_break.yaml
 # the TG2/DAMPM rank comparisons and the hard cases
 RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_assembly_mpi.py tests/mpi/test_tg2_mpi.py \
 	tests/mpi/test_exact_sums_mpi.py tests/mpi/test_partition_mpi.py tests/mpi/test_terrain_mpi.py \
-	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py
+	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py tests/mpi/test_ensemble_mpi.py \
+	tests/mpi/test_restart_mpi.py
 
 .PHONY: setup demo test test-serial test-mpi lint bench bench-peers clean
 

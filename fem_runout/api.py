@@ -14,7 +14,7 @@ import numpy as np
 
 from fem_runout import methods
 from fem_runout.config import Case, dump_resolved, load_case
-from fem_runout.errors import CaseError, SimulationError
+from fem_runout.errors import CaseError, RunInterrupted, SimulationError
 
 if TYPE_CHECKING:
     from fem_runout.callbacks import Callback
@@ -85,9 +85,50 @@ class _Progress:
         self.bar.close()
 
 
-def _prepare_out_dir(case: Case, comm, overwrite: bool) -> Path:
+def _checkpoint_for(case: Case, restart: str | Path | None, comm) -> dict | None:
+    """Read the checkpoint to restart from and check it belongs to this case (collective)."""
+    if restart is None:
+        return None
+    from fem_runout.checkpoint import read_checkpoint
+
+    tree = read_checkpoint(restart, comm)
+    method = tree.get("meta", {}).get("method")
+    if method != case.method:
+        raise CaseError(f"--restart: the checkpoint '{restart}' is of method {method!r}, the "
+                        f"case runs {case.method!r}; allowed: a checkpoint of the same method")
+    return tree
+
+
+def _checkpointer(case: Case, out: Path | None, comm):
+    """Return the run's :class:`~fem_runout.checkpoint.Checkpointer` (None without outputs)."""
+    if out is None:
+        return None
+    from fem_runout.checkpoint import Checkpointer
+
+    spec = case.output.checkpoint
+    meta = {"case": dump_resolved(case), "method": case.method, "ranks": comm.size}
+    return Checkpointer(out / "checkpoints", spec.every, spec.keep, meta)
+
+
+def _restore(solver: Solver, callbacks: list, tree: dict) -> None:
+    """Restore the solver and every restartable callback from a checkpoint (collective)."""
+    from fem_runout.callbacks import restartable
+
+    solver.load_state(tree["solver"])
+    saved = tree.get("callbacks", {})
+    for name, cb in restartable(callbacks).items():
+        if name in saved:
+            cb.resume(saved[name])
+
+
+def _prepare_out_dir(case: Case, comm, overwrite: bool, resume: bool = False) -> Path:
     out = case.output_dir
     bad = None
+    if resume:
+        if comm.rank == 0:
+            out.mkdir(parents=True, exist_ok=True)
+        comm.barrier()
+        return out
     if comm.rank == 0 and out.exists() and any(out.iterdir()):
         if overwrite:
             shutil.rmtree(out)
@@ -117,6 +158,8 @@ def run(
     comm=None,
     callbacks: Sequence[Callback] = (),
     raise_errors: bool = True,
+    restart: str | Path | None = None,
+    stop=None,
 ) -> RunResult:
     """Run a case (collective on ``comm``, default COMM_WORLD): the one run path.
 
@@ -134,6 +177,10 @@ def run(
         raise_errors: Raise :class:`~fem_runout.errors.SimulationError` when the state goes
             bad (NaN, negative depth); with False the run stops there and returns the last
             good state with :attr:`RunResult.error` set.
+        restart: A checkpoint (``<output.dir>/checkpoints/checkpoint_<step>.h5``) to continue
+            from, on any number of ranks; the outputs continue in the same folder.
+        stop: Returns a signal number once the run should stop (checkpoint, outputs, then
+            :class:`~fem_runout.errors.RunInterrupted`); the CLI passes its SIGTERM/SIGINT flag.
 
     Returns:
         The final state and diagnostics (arrays on rank 0).
@@ -144,23 +191,29 @@ def run(
 
     comm = comm or MPI.COMM_WORLD
     case = _validated(case)
+    tree = _checkpoint_for(case, restart, comm)
     solver = build_solver(case, comm)
-    out = _prepare_out_dir(case, comm, overwrite) if write else None
+    out = _prepare_out_dir(case, comm, overwrite, resume=tree is not None) if write else None
     outputs = _Outputs(case, solver, out)
-    if not quiet:
+    every = [*outputs.callbacks, *callbacks]
+    if tree is not None:
+        _restore(solver, every, tree)
+    elif not quiet:
         _say_released(solver, comm)
     progress = _Progress(case.time.end_time, case.name) if (not quiet and comm.rank == 0) \
         else None
-    runner = Runner(solver, schedule_of(case), [*outputs.callbacks, *callbacks], progress)
-    error = None
+    runner = Runner(solver, schedule_of(case), every, progress,
+                    checkpoints=_checkpointer(case, out, comm), stop=stop)
+    stopped: SimulationError | RunInterrupted | None = None
     try:
-        info = runner.run()
-    except SimulationError as exc:
-        if raise_errors:
-            raise
-        error, info = str(exc), runner.info
+        info = runner.run(resume=None if tree is None else tree["runner"])
+    except (SimulationError, RunInterrupted) as exc:  # the outputs of the last good state
+        stopped, info = exc, runner.info
     result = outputs.result(case, runner, info, comm)
-    result.error = error
+    if stopped is not None:
+        if raise_errors or isinstance(stopped, RunInterrupted):
+            raise stopped
+        result.error = str(stopped)
     if not quiet and comm.rank == 0:
         _summary(result, comm.size)
     return result
@@ -172,7 +225,8 @@ def schedule_of(case: Case):
 
     t, thr = case.time, case.output.front_threshold
     return Schedule(t.end_time, t.cfl, case.output.every, t.max_steps, t.dt_max,
-                    t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy)
+                    t.rest_speed if t.auto else None, t.rest_duration, thr, t.rest_energy,
+                    case.numerics.max_speed)
 
 
 def _validated(case: Case | str | Path | dict) -> Case:

@@ -59,3 +59,20 @@ def flow_index(solver) -> slice | np.ndarray:
     n = solver.V.dofmap.index_map.size_local
     flow = solver.flow_dofs()
     return slice(0, n) if 4 * flow.size > n else flow
+
+
+def restartable(callbacks) -> dict:
+    """Callbacks with ``save_state()`` and ``resume(state)`` by class name (numbered if repeated).
+
+    ``save_state`` is collective and returns a dict of arrays and numbers (nodal arrays in the
+    global order of :func:`~fem_runout.output.gather.gather_nodal`, complete on rank 0);
+    ``resume`` takes that dict on every rank before the runner's ``start`` (which must then keep
+    the restored state and only reopen files).
+    """
+    found: dict = {}
+    for cb in callbacks:
+        if hasattr(cb, "save_state") and hasattr(cb, "resume"):
+            name = type(cb).__name__
+            k = sum(1 for key in found if key.split("#")[0] == name)
+            found[name if k == 0 else f"{name}#{k}"] = cb
+    return found

@@ -6,7 +6,10 @@ implemented method and writes a side-by-side comparison (:mod:`fem_runout.compar
 (:mod:`fem_runout.ensemble`).
 
 Exit codes: 0 success, 1 unexpected failure, 2 bad input (case file, override, option,
-output directory), 3 the simulation had to stop (:class:`~fem_runout.errors.SimulationError`).
+output directory, checkpoint), 3 the simulation had to stop
+(:class:`~fem_runout.errors.SimulationError`; the last good state is saved as a checkpoint),
+4 an output could not be written (disk full, permission denied), 130/143 stopped by
+SIGINT/SIGTERM (checkpoint and outputs written; restart with ``--restart``).
 Input is fully validated before anything is written or any heavy module is imported.
 """
 
@@ -18,7 +21,7 @@ import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fem_runout.errors import CaseError, SimulationError
+from fem_runout.errors import CaseError, RunInterrupted, SimulationError
 from fem_runout.methods import method_names
 
 if TYPE_CHECKING:
@@ -47,6 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="replace a non-empty output directory"
+    )
+    parser.add_argument(
+        "--restart", metavar="CHECKPOINT",
+        help="continue from a checkpoint (<output.dir>/checkpoints/checkpoint_<step>.h5) on any "
+        "number of ranks; the outputs continue in the same folder",
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     return parser
@@ -82,6 +90,19 @@ class _World:
         if self.size > 1:
             self.comm.Abort(1)
 
+    def exit_now(self, code: int) -> None:
+        """End the job with ``code`` at once.
+
+        The failure may be on one rank only (MPI_Abort in parallel), and no destructor of a
+        failed native writer may run (ADIOS2's would abort the process).
+        """
+        import os
+
+        sys.stderr.flush()
+        if self.size > 1:
+            self.comm.Abort(code)
+        os._exit(code)
+
 
 def _check_output_dir(path: Path, overwrite: bool) -> None:
     """Refuse a non-empty output directory unless ``overwrite``; write nothing."""
@@ -103,7 +124,10 @@ def _prepare(args: argparse.Namespace) -> Case:
     if args.out is not None:
         overrides.append(("output.dir", args.out))
     case = load_case(args.case, overrides)
-    _check_output_dir(case.output_dir, args.overwrite)
+    if args.restart is None:
+        _check_output_dir(case.output_dir, args.overwrite)
+    elif not Path(args.restart).is_file():
+        raise CaseError(f"--restart: no checkpoint file '{args.restart}'")
     return case
 
 
@@ -114,14 +138,27 @@ def _run(case: Case, args: argparse.Namespace, world: _World) -> int:
     except ImportError as exc:
         world.say(f"error: the runner fem_runout.api.run is not available ({exc})")
         return 1
+    from fem_runout.signals import StopFlag
+
+    stop = StopFlag().install()
     try:
-        run(case, overwrite=args.overwrite, quiet=args.quiet)
+        run(case, overwrite=args.overwrite, quiet=args.quiet, restart=args.restart, stop=stop)
     except CaseError as exc:
         world.say(f"error: {exc}")
         return 2
     except SimulationError as exc:
         world.say(f"error: {exc}")
         return 3
+    except RunInterrupted as exc:
+        world.say(f"{exc}")
+        return 128 + exc.signum
+    except OSError as exc:  # an output could not be written (disk full, permissions, ...)
+        what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else str(exc)
+        print(f"error: {what.removeprefix('error: ')}; the outputs written before it stay "
+              "readable", file=sys.stderr, flush=True)
+        world.exit_now(4)
+    finally:
+        stop.uninstall()
     return 0
 
 

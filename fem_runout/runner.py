@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from fem_runout.callbacks import Callback, StepInfo, flow_index
-from fem_runout.errors import SimulationError
+from fem_runout.errors import RunInterrupted, SimulationError
 from fem_runout.exact_sum import exact_total
+from fem_runout.health import locate
 from fem_runout.solver_api import Solver
 
 
@@ -34,6 +36,7 @@ class Schedule:
         rest_depth: Only nodes deeper than this [m] count for the largest speed.
         rest_energy: Also at rest when the kinetic energy is below this fraction of its peak
             (None: speed criterion only).
+        max_speed: A node faster than this [m/s] is a bad state (None: no limit).
     """
 
     end: float
@@ -45,6 +48,7 @@ class Schedule:
     rest_duration: float = 0.0
     rest_depth: float = 1e-3
     rest_energy: float | None = None
+    max_speed: float | None = None
 
 
 def max_speed(solver: Solver, depth: float) -> float:
@@ -90,70 +94,145 @@ class Runner:
         schedule: Time control.
         callbacks: Outputs and diagnostics, called in order.
         progress: Optional object with ``update(info)`` and ``close()`` (rank 0 progress bar).
+        checkpoints: Writes checkpoints on schedule, when stopped and when the state goes bad
+            (:class:`~fem_runout.checkpoint.Checkpointer`; None: never).
+        stop: Returns a signal number once the run was asked to stop (SIGTERM, SIGINT), else
+            0; checked after every step on every rank (one integer reduction).
     """
 
     def __init__(
-        self, solver: Solver, schedule: Schedule, callbacks: Sequence[Callback], progress=None
+        self, solver: Solver, schedule: Schedule, callbacks: Sequence[Callback], progress=None,
+        checkpoints=None, stop: Callable[[], int] | None = None,
     ) -> None:
         self.solver = solver
         self.schedule = schedule
         self.callbacks = list(callbacks)
         self.progress = progress
+        self.checkpoints = checkpoints
+        self.stop = stop
+        self.last_checkpoint = None
         self.wall_time = 0.0
         self.at_rest = False
         self.info = StepInfo(0.0, 0.0, 0)
         self._rest_since: float | None = None
         self._peak_energy = 0.0
+        self._n_out, self._last_output = 1, 0.0
 
     def _call(self, hook: str, info: StepInfo) -> None:
         for cb in self.callbacks:
             getattr(cb, hook)(self.solver, info)
 
-    def run(self) -> StepInfo:
+    def state(self) -> dict[str, Any]:
+        """Return the runner's part of a checkpoint: clock, output counter and rest test."""
+        i = self.info
+        return {"t": i.t, "dt": i.dt, "step": i.step, "n_out": self._n_out,
+                "last_output": self._last_output, "rest_since": self._rest_since,
+                "peak_energy": self._peak_energy}
+
+    def checkpoint(self) -> Any:
+        """Write a checkpoint of the current state now (collective); return its path."""
+        from fem_runout.callbacks import restartable
+
+        tree = {"runner": self.state(), "solver": self.solver.save_state(),
+                "callbacks": {name: cb.save_state() for name, cb in
+                              restartable(self.callbacks).items()}}
+        self.last_checkpoint = self.checkpoints.write(tree, self.info.step, self.info.t,
+                                                      self.solver.comm)
+        return self.last_checkpoint
+
+    def _begin(self, resume: dict[str, Any] | None) -> StepInfo:
+        """Start callbacks; first output unless resuming a checkpoint's runner state."""
+        self._n_out, self._last_output = 1, 0.0
+        if resume is None:
+            info = self.info = StepInfo(0.0, 0.0, 0)
+            self._call("start", info)
+            self._call("output", info)
+            return info
+        info = self.info = StepInfo(float(resume["t"]), float(resume["dt"]), int(resume["step"]))
+        self._n_out, self._last_output = int(resume["n_out"]), float(resume["last_output"])
+        self._rest_since, self._peak_energy = resume["rest_since"], float(resume["peak_energy"])
+        self._call("start", info)
+        return info
+
+    def _stopped(self) -> int:
+        """Return the signal that asked every rank to stop, or 0 (collective with ``stop``)."""
+        if self.stop is None:
+            return 0
+        return int(self.solver.comm.allreduce(int(self.stop()), op=_max_op()))
+
+    def _interrupt(self, signum: int, info: StepInfo) -> None:
+        path = self.checkpoint() if self.checkpoints is not None else None
+        self._call("output", info)
+        self._call("finish", info)
+        raise RunInterrupted(signum, info.t, info.step, path)
+
+    def run(self, resume: dict[str, Any] | None = None) -> StepInfo:
         """Run to the end time or to rest (collective); raise SimulationError on a bad state.
 
         With ``schedule.rest_speed`` set, the run stops after the step at which the largest
         speed has stayed below it for ``rest_duration`` seconds (:attr:`at_rest` is then True).
+
+        Args:
+            resume: A checkpoint's runner state (:meth:`state`): continue from there; the
+                solver and callbacks must have been restored already.
         """
         s, solver = self.schedule, self.solver
         start = time.perf_counter()
-        info = self.info = StepInfo(0.0, 0.0, 0)
-        self._call("start", info)
-        self._call("output", info)
-        n_out, last_output = 1, 0.0
+        info = self._begin(resume)
         eps = 1e-12 * max(s.end, 1.0)
         while info.t < s.end - eps and (s.max_steps is None or info.step < s.max_steps):
             snap = solver.snapshot()
             clock = time.perf_counter()
-            dt = self._next_dt(info.t, n_out * s.every)
+            dt = self._next_dt(info.t, self._n_out * s.every)
             solver.advance(dt)
             clock = time.perf_counter() - clock
-            problem = solver.health()
+            problem = solver.health() or self._too_fast()
             if problem is not None:
-                solver.restore(snap)
-                self._call("output", info)
-                self._call("finish", info)
-                raise SimulationError(
-                    f"stopped at t = {info.t:.6g} s (step {info.step + 1}): {problem}; the last "
-                    "good state was saved"
-                )
+                self._fail(problem, snap, info)
             info = self.info = StepInfo(info.t + dt, dt, info.step + 1, clock)
             self._call("step", info)
-            if info.t >= n_out * s.every - eps or info.t >= s.end - eps:
+            if info.t >= self._n_out * s.every - eps or info.t >= s.end - eps:
                 self._call("output", info)
-                last_output = info.t
-                n_out = math.floor(info.t / s.every + 1e-9) + 1
+                self._last_output = info.t
+                self._n_out = math.floor(info.t / s.every + 1e-9) + 1
             if self.progress is not None:
                 self.progress.update(info)
             if self._came_to_rest(info):
                 break
+            if signum := self._stopped():
+                self.wall_time = time.perf_counter() - start
+                self._interrupt(signum, info)
+            if self.checkpoints is not None and self.checkpoints.due(info.t):
+                self.checkpoint()
         self.wall_time = time.perf_counter() - start
-        if last_output != info.t:
+        if self._last_output != info.t:
             self._call("output", info)
         self._call("finish", info)
         if self.progress is not None:
             self.progress.close()
         return info
+
+    def _too_fast(self) -> str | None:
+        """Return a message if a node is faster than ``schedule.max_speed`` (collective)."""
+        limit = self.schedule.max_speed
+        if limit is None:
+            return None
+        speed = max_speed(self.solver, self.schedule.rest_depth)
+        if speed > limit:
+            return f"speed {speed:.4g} m/s above numerics.max_speed = {limit:g} m/s"
+        return None
+
+    def _fail(self, problem: str, snap: Any, info: StepInfo) -> None:
+        """Name the place, go back to the last good state, save it, raise SimulationError."""
+        where = locate(self.solver, self.schedule.rest_depth)
+        self.solver.restore(snap)
+        saved = "the last good state was saved"
+        if self.checkpoints is not None:
+            saved += f" (restart from it with changed numerics: --restart {self.checkpoint()})"
+        self._call("output", info)
+        self._call("finish", info)
+        raise SimulationError(f"stopped at t = {info.t:.6g} s (step {info.step + 1}): "
+                              f"{problem}{where}; {saved}")
 
     def _came_to_rest(self, info: StepInfo) -> bool:
         """Whether the flow has been at rest for ``rest_duration`` (collective, no I/O).
@@ -186,3 +265,9 @@ class Runner:
         if t + 1.5 * dt > target:  # avoid a sliver step before an output time
             return 0.5 * (target - t)
         return dt
+
+
+def _max_op():
+    from mpi4py import MPI
+
+    return MPI.MAX

@@ -69,6 +69,18 @@ class Solver(Protocol):
         """Return to a :meth:`snapshot` (collective: ghost values are refreshed)."""
         ...
 
+    def save_state(self) -> dict[str, Any]:
+        """Return the state for a checkpoint (collective; rank-independent form on rank 0).
+
+        Nodal fields in the global order of :func:`~fem_runout.output.gather.gather_nodal`,
+        particles sorted by id; :meth:`load_state` restores it on any number of ranks.
+        """
+        ...
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Continue from a :meth:`save_state` written on any number of ranks (collective)."""
+        ...
+
     def flow_dofs(self) -> np.ndarray:
         """Owned dofs (sorted local indices) outside which ``h``, ``hu``, ``hv`` are zero.
 

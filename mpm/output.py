@@ -57,6 +57,17 @@ class ParticleWriter:
         self.pvd = Path(out_dir) / "particles.pvd"
         self.entries: list[tuple[float, str]] = []
 
+    def save_state(self) -> dict:
+        """Return the collection so far (times and files) for a checkpoint."""
+        return {"times": np.asarray([t for t, _ in self.entries], dtype=np.float64),
+                "files": "\n".join(f for _, f in self.entries)}
+
+    def resume(self, state: dict) -> None:
+        """Continue the collection of a checkpoint (``particles.pvd`` keeps its entries)."""
+        files = [f for f in str(state["files"]).split("\n") if f]
+        self.entries = list(zip(np.asarray(state["times"], dtype=float).tolist(), files,
+                                strict=True))
+
     def start(self, solver: MPMSolver, info: StepInfo) -> None:
         """Create the particle folder."""
         if solver.comm.rank == 0:

@@ -203,6 +203,26 @@ class MPMSolver:
         self._problem = None
         self._refresh()
 
+    def save_state(self) -> dict:
+        """Return every particle (all attributes, sorted by id) and counters (collective)."""
+        rows = self.comm.gather(self.particles.pack(), root=0)
+        if rows is not None:
+            rows = np.concatenate(rows)
+            rows = rows[np.argsort(rows[:, -1].copy().view(np.int64), kind="stable")]
+        return {"particles": rows, "outflow": float(self.outflow_volume),
+                "next_id": int(self.splitter.next_id), "split_count": int(self.splitter.count)}
+
+    def load_state(self, state: dict) -> None:
+        """Continue from :meth:`save_state` (collective; any rank count)."""
+        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, 13))
+        p = Particles.unpack(np.asarray(rows, dtype=np.float64))
+        self.particles, _ = migrate(self.grid, p, balanced_destinations(self.grid, p))
+        self.outflow_volume = float(state["outflow"])
+        self.splitter.next_id = int(state["next_id"])
+        self.splitter.count = int(state["split_count"])
+        self._problem = None
+        self._refresh()
+
     def flow_dofs(self) -> np.ndarray:
         """Owned dofs of the projection's window (the fields are zero outside it)."""
         return self._flow
@@ -234,7 +254,8 @@ class MPMSolver:
         vx, vy = (g[:, 1] + dt * fx) / mass, (g[:, 2] + dt * fy) / mass
         self._zero_walls(vx, vy)  # the wall reaction first: friction acts along it
         if self.friction is not None:
-            h = mass / (self.rho * g[:, 5])
+            area = g[:, 5]  # > 0 wherever mass is, unless the particles' areas underflow
+            h = np.where(area > 0.0, mass / (self.rho * np.where(area > 0.0, area, 1.0)), 0.0)
             bed = None if self.slope_g is None else self.slope_g.take(sums.act).frame(vx, vy)
             qx, qy = self.friction.implicit_update(h, h * g[:, 1] / mass, h * g[:, 2] / mass,
                                                    h * vx, h * vy, dt, bed)

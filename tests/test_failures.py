@@ -102,6 +102,8 @@ def test_exception_on_one_rank_ends_the_whole_job(tmp_path):
         def advance(self, dt):
             self._n = getattr(self, "_n", 0) + 1
             if MPI.COMM_WORLD.rank == 1 and self._n == 3:
+                import time
+                open("failed_at", "w").write(repr(time.time()))
                 raise RuntimeError("injected failure on rank 1")
             orig(self, dt)
         s.TG2Solver.advance = advance
@@ -110,11 +112,13 @@ def test_exception_on_one_rank_ends_the_whole_job(tmp_path):
                                "--set", "domain.cells=[20,20]"]))
     """)
     proc, seconds = _run_mpi(script, tmp_path)
-    print(proc.stderr[-2000:], f"ended after {seconds:.1f} s")
+    ended = time.time()
+    failed = float((tmp_path / "failed_at").read_text())
+    print(proc.stderr[-2000:], f"ended {ended - failed:.1f} s after the failure")
     assert proc.returncode != 0
     assert proc.stderr.count("RuntimeError: injected failure on rank 1") == 1
     assert "[rank 1]" in proc.stderr
-    assert seconds < 60
+    assert ended - failed <= 10.0  # the issue's bound: the whole job ends within 10 s
 
 
 def test_nan_under_mpi_exits_3_with_last_state_written(tmp_path):

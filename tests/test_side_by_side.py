@@ -39,7 +39,8 @@ def test_avakot_ratio_only_against_the_same_cell_size():
             "com1DFA 5 m": median_row([_ava(16.0, 5.0, 3000)]),
             "DAMPM": median_row([_ava(18.0, 10.0, 70000)])}
     last = avakot_table(rows)[-1].split("|")[1:-1]
-    assert last[-1].strip() == "4.50"  # 18 / 4, not 18 / 16
+    assert last[-2].strip() == "4.50"  # 18 / 4, not 18 / 16
+    assert last[-1].strip() == "1.12"  # and against com1DFA's default 5 m: 18 / 16
     assert last[6].strip() == f"{1e6 * 18.0 / (70000 * 1000):.2f}"
 
 

@@ -8,6 +8,8 @@ from types import ModuleType
 from fem_runout.bench import (
     before_after,
     dampm_report,
+    ensemble_report,
+    ensemble_throughput,
     footprint,
     peers,
     real_case,
@@ -27,6 +29,8 @@ COMMANDS: dict[str, ModuleType] = {
     "peers": peers,
     "footprint": footprint,
     "side-by-side": side_by_side,
+    "ensemble-throughput": ensemble_throughput,
+    "ensemble-report": ensemble_report,
 }
 """Command name -> module with ``HELP``, ``add_arguments(parser)`` and ``main(args)``."""
 

@@ -60,11 +60,12 @@ def avakot_table(rows: dict[str, dict[str, Any]]) -> list[str]:
     lines = ["| model | cell [m] | released [m³] | particles (end) | steps | loop wall [s], "
              "median (range) | µs per cell- or particle-step | run-out ≥ 1 cm [m] | area ≥ 1 cm "
              "[ha] | area ≥ 0.1 m [ha] | peak thickness [m] | peak speed [m/s] | wall ÷ com1DFA "
-             "(same cell) |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "(same cell) | wall ÷ com1DFA (its default 5 m) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     peers = {r["cell"]: r for name, r in rows.items() if name.startswith("com1DFA")}
     for name, r in rows.items():
-        ref = peers.get(r["cell"])
-        ratio = f"{r['wall'] / ref['wall']:.2f}" if ref is not None else ""
+        ratio = " | ".join(f"{r['wall'] / ref['wall']:.2f}" if ref is not None else ""
+                           for ref in (peers.get(r["cell"]), peers.get(5.0)))
         particles = f"{r['particles']:.0f}" if r.get("particles") else ""
         lines.append(
             f"| {name} | {r['cell']:g} | {r['released_volume']:.0f} | {particles} | "

@@ -37,6 +37,7 @@ import numpy as np
 
 from fem_runout.bench.peers import depth_maps_figure, our_metrics, peer_metrics
 from fem_runout.bench.peers_doc import write_doc
+from fem_runout.methods import method_names
 
 __all__ = ["HELP", "Job", "add_arguments", "main", "peer_pythons"]
 
@@ -44,7 +45,7 @@ HELP = "run GeoClaw and com1DFA alternately with both methods on the same inputs
 ROOT = Path(__file__).resolve().parents[2]
 CASES = ROOT / "cases"
 PEERS_HOME = Path.home() / ".cache" / "fem_runout" / "peers"
-METHODS = ("tg2", "mpm")
+METHODS = tuple(method_names())
 
 
 @dataclass(frozen=True)

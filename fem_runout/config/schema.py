@@ -191,6 +191,19 @@ class ModelSpec(StrictSpec):
     curvature: Bool = False
 
 
+class CheckpointSpec(StrictSpec):
+    """Checkpoints (``<output.dir>/checkpoints/checkpoint_<step>.h5``; docs/usage.md).
+
+    Attributes:
+        every: Interval of simulated time [s] (None: only when the run is stopped by a signal
+            or its state goes bad).
+        keep: Number of newest checkpoints kept.
+    """
+
+    every: Real | None = Field(None, gt=0)
+    keep: int = Field(2, ge=1)
+
+
 class OutputSpec(StrictSpec):
     """Where and how often to write results.
 
@@ -204,6 +217,7 @@ class OutputSpec(StrictSpec):
     vtk: Bool = False  # also write fields.pvd (VTK XML, readable by pyvista/VTK without ADIOS2)
     hazard: Bool = True  # hazard maps (GeoTIFF) and summary.json
     ascii: Bool = False  # hazard maps also as ESRI ASCII grids
+    checkpoint: CheckpointSpec = CheckpointSpec()
 
 
 class NumericsSpec(StrictSpec):
@@ -219,6 +233,9 @@ class NumericsSpec(StrictSpec):
     active_set: Bool = True  # TG2: assemble on the cells near the flow only (same bits)
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
+    # stop the run (last good state checkpointed) once a node is faster than this [m/s]:
+    # free fall from 10 km gives 443 m/s, so only a numerical blow-up gets here
+    max_speed: Real | None = Field(1000.0, gt=0)
 
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")

@@ -143,6 +143,7 @@ class SeriesRecorder:
         self._last_step: int | None = None
         self._rank = 0
         self._x: np.ndarray | None = None
+        self._resumed = False
 
     @property
     def series(self) -> dict[str, np.ndarray]:
@@ -173,10 +174,26 @@ class SeriesRecorder:
                 writer.writerow([repr(v) for v in row])
         tmp.replace(self.path)
 
+    def save_state(self) -> dict:
+        """Return the series so far (the same on every rank) for a checkpoint."""
+        return {"columns": {k: np.asarray(v, dtype=np.float64) for k, v in self._columns.items()},
+                "initial_volume": self.initial_volume,
+                "last_step": -1 if self._last_step is None else self._last_step}
+
+    def resume(self, state: dict) -> None:
+        """Continue the series of a checkpoint (before :meth:`start`)."""
+        self._columns = {k: np.asarray(state["columns"][k], dtype=np.float64).tolist()
+                         for k in SERIES_COLUMNS}
+        self.initial_volume = float(state["initial_volume"])
+        self._last_step = None if state["last_step"] < 0 else int(state["last_step"])
+        self._resumed = True
+
     def start(self, solver: Solver, info: StepInfo) -> None:
-        """Record the initial volume and the first row."""
+        """Record the initial volume and the first row (resumed: keep the series so far)."""
         self._rank = solver.comm.rank
         self._x = owned_x(solver)
+        if self._resumed:
+            return
         self.initial_volume = compute_diagnostics(solver, self.threshold, self.density,
                                                   self._x)["volume"]
         self._record(solver, info)
@@ -218,6 +235,7 @@ class PeakTracker:
         self.peak_depth = np.zeros(0)
         self.peak_speed = np.zeros(0)
         self._V: fem.FunctionSpace | None = None
+        self._resume: dict | None = None
 
     def _update(self, solver: Solver) -> None:
         """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
@@ -259,12 +277,27 @@ class PeakTracker:
             raise RuntimeError("PeakTracker.gathered() called before start()")
         return gather_nodal(self._V, {"peak_depth": self.peak_depth, "peak_speed": self.peak_speed})
 
+    def save_state(self) -> dict:
+        """Return the envelopes in the global node order (collective; rank 0 has them)."""
+        return {"nodes": self.gathered()}
+
+    def resume(self, state: dict) -> None:
+        """Continue a checkpoint's envelopes (restored at :meth:`start`)."""
+        self._resume = state
+
     def start(self, solver: Solver, info: StepInfo) -> None:
-        """Initialise the envelopes with the initial state."""
+        """Initialise the envelopes with the initial state (or the checkpoint's)."""
         self._V = solver.V
         n = solver.V.dofmap.index_map.size_local
         self.peak_depth = np.zeros(n)  # depths are >= 0; zero outside the flow
         self.peak_speed = np.zeros(n)
+        if self._resume is not None:
+            from fem_runout.checkpoint import scatter_nodal
+
+            local = scatter_nodal(solver.V, self._resume["nodes"])
+            self.peak_depth[:], self.peak_speed[:] = local["peak_depth"][:n], \
+                local["peak_speed"][:n]
+            self._resume = None
         self._update(solver)
 
     def step(self, solver: Solver, info: StepInfo) -> None:

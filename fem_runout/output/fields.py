@@ -13,6 +13,7 @@ from mpi4py import MPI  # noqa: F401 - before dolfinx
 import numpy as np
 from dolfinx import fem, io
 
+from fem_runout.errors import OutputError
 from fem_runout.output.gather import sorted_node_order
 
 if TYPE_CHECKING:
@@ -77,6 +78,8 @@ class FieldWriter:
         self._writer: io.VTXWriter | None = None
         self._pvd: io.VTKFile | None = None
         self.times: list[float] = []
+        self.part = 0  # a restarted run continues in fields.part<k>.bp / .pvd
+        self._part_start = 0  # index in times of this part's first output
 
     def update(self, solver: Solver) -> None:
         """Recompute ``velocity`` and ``eta`` on all local nodes (ghosts included).
@@ -93,6 +96,25 @@ class FieldWriter:
         vel[:, 0] = (hu * inv_h)[nodes]
         vel[:, 1] = (hv * inv_h)[nodes]
         self.eta.x.array[:] = h + z
+
+    def save_state(self) -> dict:
+        """Return the output times written so far and the file part (for a checkpoint)."""
+        return {"times": np.asarray(self.times, dtype=np.float64), "part": self.part}
+
+    def resume(self, state: dict) -> None:
+        """Continue after a checkpoint: the next outputs go to the next file part.
+
+        ADIOS2 files cannot be appended to by a new VTXWriter, so a restarted run writes
+        ``fields.part1.bp`` (``fields.part2.bp`` after a second restart, …) next to
+        ``fields.bp``; ParaView opens them as one series (docs/usage.md).
+        """
+        self.times = np.asarray(state["times"], dtype=np.float64).tolist()
+        self._part_start = len(self.times)
+        self.part = int(state["part"]) + 1
+        suffix = f".part{self.part}"
+        self.path = self.out_dir / f"fields{suffix}.bp"
+        if self.pvd_path is not None:
+            self.pvd_path = self.out_dir / f"fields{suffix}.pvd"
 
     def start(self, solver: Solver, info: StepInfo) -> None:
         """Open ``fields.bp`` and ``fields.pvd`` (collective)."""
@@ -117,10 +139,32 @@ class FieldWriter:
         if self._writer is None:
             raise RuntimeError("FieldWriter.output() called before start()")
         self.update(solver)
-        self._writer.write(info.t)
-        if self._pvd is not None:
-            self._pvd.write_function(self._functions, info.t)
+        try:
+            self._writer.write(info.t)
+            if self._pvd is not None:
+                self._pvd.write_function(self._functions, info.t)
+        except RuntimeError as exc:  # ADIOS2 / VTK I/O failures
+            reason = str(exc).split("couldn't")[-1].split("[0m")[0].strip(" :")
+            raise OutputError(f"cannot write the fields at t = {info.t:.6g} s to "
+                              f"{self.path.parent}: {reason or exc}") from None
         self.times.append(info.t)
+        if self._pvd is not None and solver.comm.rank == 0:
+            self._write_pvd_index()
+
+    def _write_pvd_index(self) -> None:
+        """Rewrite the ``.pvd`` collection after every output (atomically).
+
+        DOLFINx writes it only when the file is closed; a run that ends early (a full disk, a
+        kill) would leave its ``.pvtu`` files without an index.
+        """
+        stem = self.pvd_path.stem
+        rows = "\n".join(f'    <DataSet timestep="{t!r}" part="0" file="{stem}{k:06d}.pvtu" />'
+                         for k, t in enumerate(self.times[self._part_start:]))
+        text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")
+        tmp = self.pvd_path.with_suffix(".pvd.tmp")
+        tmp.write_text(text)
+        tmp.replace(self.pvd_path)
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
         """Close the files (collective)."""
@@ -194,7 +238,9 @@ def read_vtx_bp4(path: str | Path) -> list[dict[str, np.ndarray]]:
     Returns:
         One dict per step, variable name to values (``step`` holds the time; scalar point
         data has shape ``(n,)``, vectors ``(n, 3)``, ``geometry`` ``(n, 3)``; with
-        ``VTXMeshPolicy.reuse`` the mesh variables appear in the first step only).
+        ``VTXMeshPolicy.reuse`` the mesh variables appear in the first step only). A step
+        written only in part (a run stopped by a full disk or a kill while writing) is left
+        out.
 
     Raises:
         ValueError: If the folder is not a BP4 file.
@@ -204,6 +250,7 @@ def read_vtx_bp4(path: str | Path) -> list[dict[str, np.ndarray]]:
     if not data_files or not (folder / "md.idx").is_file() or (folder / "mmd.0").exists():
         raise ValueError(f"{folder} is not a BP4 folder")
     blocks: dict[int, list[tuple[int, dict[str, np.ndarray]]]] = {}
+    cut: set[int] = set()
     for data_file in data_files:
         buf = data_file.read_bytes()
         for pg, pg_end in _records(buf, b"[PGI", 0, len(buf)):
@@ -212,10 +259,15 @@ def read_vtx_bp4(path: str | Path) -> list[dict[str, np.ndarray]]:
             (rank,) = struct.unpack_from("<I", buf, p)
             (ts_len,) = struct.unpack_from("<H", buf, p + 4)
             (step,) = struct.unpack_from("<I", buf, p + 6 + ts_len)
-            variables = dict(_parse_variable(buf, v) for v, _ in _records(buf, b"[VMD", pg, pg_end))
+            try:
+                variables = dict(_parse_variable(buf, v)
+                                 for v, _ in _records(buf, b"[VMD", pg, pg_end))
+            except (ValueError, KeyError, IndexError, struct.error):
+                cut.add(step)  # written only in part (the run stopped while writing it)
+                continue
             blocks.setdefault(step, []).append((rank, variables))
     steps = []
-    for step in sorted(blocks):
+    for step in sorted(set(blocks) - cut):
         ranks = sorted(blocks[step], key=lambda item: item[0])
         names = dict.fromkeys(name for _, variables in ranks for name in variables)
         merged = {name: np.concatenate([v[name] for _, v in ranks if name in v]) for name in names}

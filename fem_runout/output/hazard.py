@@ -182,15 +182,34 @@ class HazardMaps:
         self.summary: dict[str, Any] = {}
         self.written: list[Path] = []
         self._track: dict[str, np.ndarray] = {}
+        self._resume: dict | None = None
 
     def _owned(self, solver: Solver) -> tuple[np.ndarray, ...]:
         n = solver.V.dofmap.index_map.size_local
         return tuple(solver.fields[k].x.array[:n].real.copy() for k in ("h", "hu", "hv", "z"))
 
+    def save_state(self) -> dict:
+        """Return the tracked maps in the global node order and the released volume."""
+        return {"nodes": gather_nodal(self._V, self._track),
+                "released_volume": self.summary["released_volume"]}
+
+    def resume(self, state: dict) -> None:
+        """Continue a checkpoint's maps (restored at :meth:`start`)."""
+        self._resume = state
+
     def start(self, solver: Solver, info: StepInfo) -> None:
         """Store the released state; print nothing (the API prints the released volume)."""
+        self._V = solver.V
         h, _, _, z = self._owned(solver)
         n = h.size
+        if self._resume is not None:
+            from fem_runout.checkpoint import scatter_nodal
+
+            local = scatter_nodal(solver.V, self._resume["nodes"])
+            self._track = {k: np.ascontiguousarray(v[:n]) for k, v in local.items()}
+            self.summary["released_volume"] = float(self._resume["released_volume"])
+            self._resume = None
+            return
         self._track = {"h0": h, "z": z, "peak_depth": h.copy(), "peak_speed": np.zeros(n),
                        "peak_pressure": np.zeros(n),
                        "arrival_time": np.where(h > self.threshold, info.t, np.nan)}

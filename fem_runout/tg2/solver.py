@@ -139,6 +139,22 @@ class TG2Solver:
         self.transport.set_state(snap[0])
         self.transport.outflow_volume = snap[1]
 
+    def save_state(self) -> dict:
+        """Return ``(h, hu, hv)`` in the global node order and the outflow (collective)."""
+        from fem_runout.output.gather import gather_nodal
+
+        q = self.transport.state()
+        nodes = gather_nodal(self.V, {"h": q[:, 0], "hu": q[:, 1], "hv": q[:, 2]})
+        return {"nodes": nodes, "outflow": float(self.transport.outflow_volume)}
+
+    def load_state(self, state: dict) -> None:
+        """Continue from :meth:`save_state` (collective; any rank count)."""
+        from fem_runout.checkpoint import scatter_nodal
+
+        local = scatter_nodal(self.V, state["nodes"])
+        self.transport.set_state(np.stack([local["h"], local["hu"], local["hv"]], axis=1))
+        self.transport.outflow_volume = float(state["outflow"])
+
     def flow_dofs(self) -> np.ndarray:
         """Owned nodes of the transport's active set (the state is zero outside it).
 

@@ -1,0 +1,45 @@
+"""Where a run went bad: the location of a bad state, for any method.
+
+The solvers' own ``health()`` says what is wrong (NaN, negative depth, a collapsed particle
+column); the runner adds an exploding speed (``numerics.max_speed``), and :func:`locate` names
+the place from the Q1 fields: the owned node with a non-finite value, else the most negative
+depth, else the largest speed, with its coordinates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fem_runout.callbacks import flow_index
+
+__all__ = ["locate"]
+
+
+def _badness(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, depth: float) -> np.ndarray:
+    """Per node: inf for non-finite values, -h for negative depths, else the speed."""
+    with np.errstate(all="ignore"):
+        speed = np.where(h > depth, np.sqrt(hu * hu + hv * hv) / np.where(h > depth, h, 1.0), 0)
+        bad = np.where(h < 0, 1e300 - h, speed)
+        return np.where(np.isfinite(h) & np.isfinite(hu) & np.isfinite(hv), bad, np.inf)
+
+
+def locate(solver, depth: float) -> str:
+    """Return ``" near (x, y)"`` for the worst owned node of the current fields (collective).
+
+    Empty for a solver without Q1 fields (a test's scalar stand-in).
+    """
+    if not hasattr(solver, "fields") or not hasattr(solver, "V"):
+        return ""
+    idx = flow_index(solver)
+    h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
+    bad = _badness(h, hu, hv, depth)
+    local = (float(bad.max()), None) if bad.size else (-np.inf, None)
+    if bad.size:
+        k = int(np.argmax(bad))
+        xy = solver.V.tabulate_dof_coordinates()[np.arange(h.size)[k] if isinstance(idx, slice)
+                                                 else idx[k]]
+        local = (local[0], (float(xy[0]), float(xy[1])))
+    worst = max(solver.comm.allgather(local), key=lambda item: item[0])
+    if worst[1] is None or worst[0] <= 0:
+        return ""
+    return f" near (x, y) = ({worst[1][0]:.6g}, {worst[1][1]:.6g})"
