@@ -125,6 +125,26 @@ def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path)
     assert _series(tmp_path / "whole" / "series.csv") == _series(tmp_path / "cut" / "series.csv")
 
 
+def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path):
+    case = str(ROOT / "cases/hemisphere.yaml")
+    whole = _cli(case, "--out", "whole", *SLOW, cwd=tmp_path)
+    assert whole.wait(timeout=300) == 0, whole.stderr.read()
+    mpiexec = Path(sys.executable).parent / "mpiexec"
+    proc = subprocess.Popen([str(mpiexec), "-n", "2", sys.executable, "-m", "fem_runout", case,
+                             "--out", "cut", *SLOW], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    _wait_for("cut/checkpoints/checkpoint_*.h5", tmp_path)
+    proc.send_signal(signal.SIGTERM)  # to mpiexec, which forwards it to both ranks
+    assert proc.wait(timeout=60) == 143
+    err = proc.stderr.read()
+    assert err.count("stopped by SIGTERM at t = ") == 1 and "Traceback" not in err
+    checkpoint = err.split("--restart ")[1].split()[0]
+    again = _cli(case, "--out", "cut", *SLOW, "--restart", checkpoint, cwd=tmp_path)
+    assert again.wait(timeout=300) == 0, again.stderr.read()
+    a, b = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "cut"))
+    assert all(a[k] == b[k] for k in SUMMARY)
+
+
 def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path):
     case = str(ROOT / "cases/hemisphere.yaml")
     whole = _cli(case, "--out", "whole", *SLOW, cwd=tmp_path)

@@ -38,24 +38,26 @@ def _checkpoints(folder: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize("method", ["tg2", "mpm"])
-def test_restart_on_another_rank_count(tmp_path_factory, method):
+@pytest.mark.parametrize("name", ["bingham", "auto"])
+def test_restart_on_another_rank_count(tmp_path_factory, method, name):
     root = _folder(tmp_path_factory)
-    whole = run(_case("bingham", method, root / "whole"), comm=WORLD)
-    every = ("output.checkpoint.every=0.3", "output.checkpoint.keep=10")
+    whole = run(_case(name, method, root / "whole"), comm=WORLD)
+    every = (f"output.checkpoint.every={3 if name == 'auto' else 0.3}",
+             "output.checkpoint.keep=10")
     # all ranks -> all ranks (bitwise) and all ranks -> 1 rank
-    run(_case("bingham", method, root / "all", *every), comm=WORLD)
-    mid = _checkpoints(root / "all")[0]
-    same = run(_case("bingham", method, root / "all"), comm=WORLD, restart=mid)
+    run(_case(name, method, root / "all", *every), comm=WORLD)
+    mid = _checkpoints(root / "all")[-2]  # mid-run (end: auto: the flow settling)
+    same = run(_case(name, method, root / "all"), comm=WORLD, restart=mid)
     if WORLD.rank == 0:
         for key in FINAL:
             assert np.array_equal(getattr(whole, key), getattr(same, key)), key
-        one = run(_case("bingham", method, root / "one_from_all"), comm=MPI.COMM_SELF,
+        one = run(_case(name, method, root / "one_from_all"), comm=MPI.COMM_SELF,
                   restart=mid)
         _close(whole, one)
         # 1 rank -> all ranks: the checkpoint is written by rank 0 alone
-        run(_case("bingham", method, root / "one", *every), comm=MPI.COMM_SELF)
+        run(_case(name, method, root / "one", *every), comm=MPI.COMM_SELF)
     WORLD.Barrier()
-    many = run(_case("bingham", method, root / "one"), comm=WORLD,
-               restart=_checkpoints(root / "one")[0])
+    many = run(_case(name, method, root / "one"), comm=WORLD,
+               restart=_checkpoints(root / "one")[-2])
     if WORLD.rank == 0:
         _close(whole, many)
