@@ -72,6 +72,7 @@ class ActiveSet:
         self.wide = np.arange(n_cells)
         self.nodes = np.arange(n_nodes)
         self.rebuilds = 0
+        self.seed: np.ndarray | None = None  # the wet nodes the set was last built around
         self._cache: dict[object, object] = {}
 
     @property
@@ -97,6 +98,17 @@ class ActiveSet:
             return False
         wet = np.zeros(self.disc.coords.shape[0])
         wet[wet_idx] = 1.0
+        self.rebuild(wet)
+        return True
+
+    def rebuild(self, wet: np.ndarray) -> None:
+        """Build the set around the local nodes where ``wet > 0`` (collective).
+
+        :attr:`seed` keeps ``wet``: a checkpoint stores it, so a restarted run works on the
+        very set of the uninterrupted one (sums over the flow's dofs then add in the same
+        order, and the series match bit for bit).
+        """
+        self.seed = wet
         hops = [wet]
         for _ in range(self.rings + 2):
             hops.append(self._grow(hops[-1]))
@@ -109,7 +121,6 @@ class ActiveSet:
         self.nodes = np.flatnonzero(hops[-1] > 0.0)
         self._cache = {}
         self.rebuilds += 1
-        return True
 
     def _grow(self, flag: np.ndarray) -> np.ndarray:
         """One node hop: the max over the cells around each node, then over the ranks."""

@@ -171,24 +171,17 @@ def _report_crash(world: _World) -> int:
     return 1
 
 
-def _compare(argv: list[str]) -> int:
-    """Run ``python -m fem_runout compare ...`` (exit codes as for a run)."""
+#: ``python -m fem_runout <name> ...`` -> the module whose ``main(argv)`` runs it.
+SUBCOMMANDS = {"compare": "fem_runout.compare", "ensemble": "fem_runout.ensemble.cli"}
+
+
+def _subcommand(name: str, argv: list[str]) -> int:
+    """Run a sub-command (exit codes as for a run; a crash stops every rank)."""
+    import importlib
+
     world = _World()
     try:
-        from fem_runout.compare import main as compare_main
-
-        return compare_main(argv)
-    except Exception:
-        return _report_crash(world)
-
-
-def _ensemble(argv: list[str]) -> int:
-    """Run ``python -m fem_runout ensemble ...`` (exit codes as for a run)."""
-    world = _World()
-    try:
-        from fem_runout.ensemble.cli import main as ensemble_main
-
-        return ensemble_main(argv)
+        return importlib.import_module(SUBCOMMANDS[name]).main(argv)
     except Exception:
         return _report_crash(world)
 
@@ -203,10 +196,8 @@ def main(argv: list[str] | None = None) -> int:
         The exit code: 0 done, 1 unexpected failure, 2 bad input, 3 simulation stopped.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["compare"]:
-        return _compare(argv[1:])
-    if argv[:1] == ["ensemble"]:
-        return _ensemble(argv[1:])
+    if argv[:1] and argv[0] in SUBCOMMANDS:
+        return _subcommand(argv[0], argv[1:])
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help or a usage error (argparse already printed it)

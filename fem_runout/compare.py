@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from fem_runout.errors import CaseError, SimulationError
+from fem_runout.errors import CaseError, SimulationError, first_error_everywhere
 from fem_runout.methods import method_names
 
 ALL_METHODS = method_names()
@@ -169,16 +169,10 @@ def main(argv: list[str]) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
-    error = None
-    try:
-        out, cases = prepare(args)
-    except CaseError as exc:
-        error = " ".join(str(exc).split("\n"))
-    error = next((e for e in comm.allgather(error) if e is not None), None)
-    if error is not None:
-        if comm.rank == 0:
-            print(f"error: {error}", file=sys.stderr, flush=True)
+    prepared: list = []
+    if first_error_everywhere(comm, lambda: prepared.extend(prepare(args))):
         return 2
+    out, cases = prepared
     try:
         _execute(args, out, cases, comm)
     except CaseError as exc:

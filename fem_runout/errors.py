@@ -40,3 +40,22 @@ class OutputError(OSError):
     Raised for the native writers' failures (ADIOS2 reports them as RuntimeError) so that the
     command line treats every output failure alike: one message, exit code 4.
     """
+
+
+def first_error_everywhere(comm, check) -> str | None:
+    """Run ``check()`` on every rank; return the first CaseError message any rank got.
+
+    Collective (one allgather). The message (folded to one line) is printed as
+    ``error: ...`` by rank 0, so a command can return exit code 2 on every rank.
+    """
+    import sys
+
+    error = None
+    try:
+        check()
+    except CaseError as exc:
+        error = " ".join(str(exc).split("\n"))
+    error = next((e for e in comm.allgather(error) if e is not None), None)
+    if error is not None and comm.rank == 0:
+        print(f"error: {error}", file=sys.stderr, flush=True)
+    return error

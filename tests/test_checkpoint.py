@@ -34,7 +34,7 @@ SUMMARY = ("released_volume", "deposit_volume", "outflow_volume", "affected_area
            "steps", "at_rest")
 
 
-def _case(name: str, method: str, out: Path, *extra: str):
+def case_of(name: str, method: str, out: Path, *extra: str):
     path, overrides = RUNS[name]
     return load_case(ROOT / path, [f"method={method}", f"output.dir={out}",
                                    "output.pictures=false", *overrides, *extra])
@@ -69,14 +69,14 @@ def test_tree_round_trip(tmp_path):
 @pytest.mark.parametrize("method", ["tg2", "mpm"])
 @pytest.mark.parametrize("name", list(RUNS))
 def test_restart_equals_uninterrupted_run(tmp_path, method, name):
-    whole = run(_case(name, method, tmp_path / "whole"), comm=COMM)
+    whole = run(case_of(name, method, tmp_path / "whole"), comm=COMM)
     every = "3" if name == "auto" else "0.3"
-    first = run(_case(name, method, tmp_path / "cut", f"output.checkpoint.every={every}",
+    first = run(case_of(name, method, tmp_path / "cut", f"output.checkpoint.every={every}",
                       "output.checkpoint.keep=20"), comm=COMM)
     checkpoints = sorted((tmp_path / "cut" / "checkpoints").glob("checkpoint_*.h5"))
     assert len(checkpoints) >= 2
     # the second-to-last: mid-run (for end: auto, after the flow began to settle)
-    resumed = run(_case(name, method, tmp_path / "cut"), comm=COMM, restart=checkpoints[-2])
+    resumed = run(case_of(name, method, tmp_path / "cut"), comm=COMM, restart=checkpoints[-2])
     assert resumed.steps == whole.steps == first.steps
     assert_same_run(whole, resumed, tmp_path / "whole", tmp_path / "cut")
     if name == "auto":
@@ -179,7 +179,7 @@ def test_bad_restart_is_a_clear_error(tmp_path, extra, message):
 
 def test_restart_of_another_method_or_mesh_is_refused(tmp_path):
     case = ROOT / "cases/hemisphere.yaml"
-    run(_case("hemisphere", "tg2", tmp_path / "a", "output.checkpoint.every=0.3"), comm=COMM)
+    run(case_of("hemisphere", "tg2", tmp_path / "a", "output.checkpoint.every=0.3"), comm=COMM)
     checkpoint = sorted((tmp_path / "a" / "checkpoints").glob("*.h5"))[0]
     for extra, message in ((["--method", "mpm"], "is of method 'tg2', the case runs 'mpm'"),
                            (["--set", "domain.cells=[20,30]"], "not this case's mesh")):

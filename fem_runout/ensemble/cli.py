@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from fem_runout.errors import CaseError
+from fem_runout.errors import first_error_everywhere
 
 __all__ = ["build_parser", "main"]
 
@@ -40,15 +40,8 @@ def main(argv: list[str]) -> int:
     comm = MPI.COMM_WORLD
     from fem_runout.ensemble.driver import prepare, run_ensemble
 
-    error = None
-    try:
-        prepare(args.case, args.ensemble, args.overrides, args.out)
-    except CaseError as exc:
-        error = " ".join(str(exc).split("\n"))
-    error = next((e for e in comm.allgather(error) if e is not None), None)
-    if error is not None:
-        if comm.rank == 0:
-            print(f"error: {error}", file=sys.stderr, flush=True)
+    if first_error_everywhere(comm, lambda: prepare(args.case, args.ensemble, args.overrides,
+                                                    args.out)):
         return 2
     result = run_ensemble(args.case, args.ensemble, overrides=args.overrides, out=args.out,
                           comm=comm, quiet=args.quiet)

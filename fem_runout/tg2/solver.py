@@ -143,17 +143,23 @@ class TG2Solver:
         """Return ``(h, hu, hv)`` in the global node order and the outflow (collective)."""
         from fem_runout.output.gather import gather_nodal
 
-        q = self.transport.state()
-        nodes = gather_nodal(self.V, {"h": q[:, 0], "hu": q[:, 1], "hv": q[:, 2]})
-        return {"nodes": nodes, "outflow": float(self.transport.outflow_volume)}
+        t = self.transport
+        q = t.state()
+        arrays = {"h": q[:, 0], "hu": q[:, 1], "hv": q[:, 2]}
+        if t.active_set and t.active.seed is not None:
+            arrays["active_seed"] = t.active.seed  # the wet nodes the active set was built on
+        return {"nodes": gather_nodal(self.V, arrays), "outflow": float(t.outflow_volume)}
 
     def load_state(self, state: dict) -> None:
         """Continue from :meth:`save_state` (collective; any rank count)."""
         from fem_runout.checkpoint import scatter_nodal
 
+        t = self.transport
         local = scatter_nodal(self.V, state["nodes"])
-        self.transport.set_state(np.stack([local["h"], local["hu"], local["hv"]], axis=1))
-        self.transport.outflow_volume = float(state["outflow"])
+        t.set_state(np.stack([local["h"], local["hu"], local["hv"]], axis=1))
+        t.outflow_volume = float(state["outflow"])
+        if t.active_set and "active_seed" in local:
+            t.active.rebuild(local["active_seed"])  # the uninterrupted run's very set
 
     def flow_dofs(self) -> np.ndarray:
         """Owned nodes of the transport's active set (the state is zero outside it).

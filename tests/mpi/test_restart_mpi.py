@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fem_runout.api import run
-from tests.test_checkpoint import FINAL, SUMMARY, _case
+from tests.test_checkpoint import FINAL, SUMMARY, case_of
 
 WORLD = MPI.COMM_WORLD
 
@@ -41,23 +41,23 @@ def _checkpoints(folder: Path) -> list[Path]:
 @pytest.mark.parametrize("name", ["bingham", "auto"])
 def test_restart_on_another_rank_count(tmp_path_factory, method, name):
     root = _folder(tmp_path_factory)
-    whole = run(_case(name, method, root / "whole"), comm=WORLD)
+    whole = run(case_of(name, method, root / "whole"), comm=WORLD)
     every = (f"output.checkpoint.every={3 if name == 'auto' else 0.3}",
              "output.checkpoint.keep=10")
     # all ranks -> all ranks (bitwise) and all ranks -> 1 rank
-    run(_case(name, method, root / "all", *every), comm=WORLD)
+    run(case_of(name, method, root / "all", *every), comm=WORLD)
     mid = _checkpoints(root / "all")[-2]  # mid-run (end: auto: the flow settling)
-    same = run(_case(name, method, root / "all"), comm=WORLD, restart=mid)
+    same = run(case_of(name, method, root / "all"), comm=WORLD, restart=mid)
     if WORLD.rank == 0:
         for key in FINAL:
             assert np.array_equal(getattr(whole, key), getattr(same, key)), key
-        one = run(_case(name, method, root / "one_from_all"), comm=MPI.COMM_SELF,
+        one = run(case_of(name, method, root / "one_from_all"), comm=MPI.COMM_SELF,
                   restart=mid)
         _close(whole, one)
         # 1 rank -> all ranks: the checkpoint is written by rank 0 alone
-        run(_case(name, method, root / "one", *every), comm=MPI.COMM_SELF)
+        run(case_of(name, method, root / "one", *every), comm=MPI.COMM_SELF)
     WORLD.Barrier()
-    many = run(_case(name, method, root / "one"), comm=WORLD,
+    many = run(case_of(name, method, root / "one"), comm=WORLD,
                restart=_checkpoints(root / "one")[-2])
     if WORLD.rank == 0:
         _close(whole, many)
