@@ -171,3 +171,17 @@ def test_killed_ensemble_resumes_to_the_same_products(tmp_path):
         assert np.array_equal(a[name], b[name], equal_nan=True), name
     assert json.loads((out / "ensemble.json").read_text()) == \
         json.loads((whole.out / "ensemble.json").read_text())
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "cases" / "ensembles").glob("*.yaml")),
+                         ids=lambda p: p.stem)
+def test_shipped_ensembles_load_with_their_case(path):
+    from fem_runout.ensemble.driver import prepare
+    from fem_runout.terrain.paths import data_folder
+
+    case = ROOT / "cases" / path.name  # cases/ensembles/<name>.yaml varies cases/<name>.yaml
+    if "${FEM_RUNOUT_DATA}" in case.read_text() and not data_folder().is_dir():
+        pytest.skip(f"{case.name} needs the data folder {data_folder()} (FEM_RUNOUT_DATA)")
+    plan = prepare(case, path)
+    assert len(plan.members) == plan.spec.members
+    assert len({m.key for m in plan.members}) == len(plan.members)  # distinct members

@@ -2,7 +2,7 @@ r"""Ensemble throughput: the same members one after another on 1 rank, then side
 
 Usage::
 
-    python -m fem_runout.bench ensemble-throughput cases/avakot.yaml cases/avakot_ensemble.yaml \\
+    python -m fem_runout.bench ensemble-throughput cases/avakot.yaml cases/ensembles/avakot.yaml \\
         --members 8 --ranks 2 --set method=mpm --doc docs/ensembles.md
 
 Each run is a fresh ``mpiexec -n R python -m fem_runout ensemble`` into its own folder (no

@@ -21,7 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an ensemble of a case (parameters sampled from distributions) and "
         "write probability, percentile and sensitivity products.")
     parser.add_argument("case", help="case file (YAML)")
-    parser.add_argument("ensemble", help="ensemble file (YAML), e.g. cases/avakot_ensemble.yaml")
+    parser.add_argument("ensemble", help="ensemble file (YAML), e.g. cases/ensembles/avakot.yaml")
     parser.add_argument("--out", metavar="DIR", help="ensemble folder (overrides output.dir)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="KEY.PATH=VALUE", help="override a base-case value (repeatable)")

@@ -1,6 +1,6 @@
 """The ensemble file: which case keys vary, how they are distributed and sampled.
 
-Example (``cases/avakot_ensemble.yaml``)::
+Example (``cases/ensembles/avakot.yaml``)::
 
     members: 32
     ranks_per_member: 1
