@@ -185,3 +185,21 @@ def test_shipped_ensembles_load_with_their_case(path):
     plan = prepare(case, path)
     assert len(plan.members) == plan.spec.members
     assert len({m.key for m in plan.members}) == len(plan.members)  # distinct members
+
+
+def test_ensemble_report_row_has_the_quantiles(tmp_path):
+    from fem_runout.bench.ensemble_report import method_rows
+
+    head = "member,key,x,runout_length,travel_angle_deg,affected_area,deposit_volume," \
+           "peak_speed_max,peak_depth_max,wall_time,error"
+    rows = [f"{k},k{k},0.1,{1000 + 10 * k},30,{1e4 * k},1,{40 + k},2,{10 + k}," for k in range(11)]
+    rows.append("11,k11,0.1,,,,,,,,NaN at t = 1 s")  # a failed member is left out
+    (tmp_path / "members.csv").write_text("\n".join([head, *rows]) + "\n")
+    (tmp_path / "ensemble.json").write_text(json.dumps(
+        {"sensitivity": {"runout_length": {"x": -0.5}}}))
+    row, lines = method_rows("mpm", tmp_path)
+    cells = [c.strip() for c in row.split("|")[1:-1]]
+    assert cells[1:4] == ["12", "1", "15.0 (10.0–20.0)"]
+    assert cells[4] == "1010 / 1050 / 1090"  # P10 / P50 / P90 of 1000 ... 1100
+    assert cells[5] == "1.0 / 5.0 / 9.0"  # 1e4 k m² = k ha
+    assert lines == ["- DAMPM: Spearman correlation of the run-out with `x` -0.50"]
