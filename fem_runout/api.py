@@ -204,6 +204,8 @@ def run(
         else None
     runner = Runner(solver, schedule_of(case), every, progress,
                     checkpoints=_checkpointer(case, out, comm), stop=stop)
+    if tree is not None and runner.checkpoints is not None:
+        runner.checkpoints.resume_at(float(tree["runner"]["t"]))
     stopped: SimulationError | RunInterrupted | None = None
     try:
         info = runner.run(resume=None if tree is None else tree["runner"])

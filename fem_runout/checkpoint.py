@@ -12,6 +12,7 @@ arrays datasets, numbers and strings attributes.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from pathlib import Path
@@ -121,7 +122,13 @@ class Checkpointer:
         self.keep = int(keep)
         self.meta = dict(meta)
         self.next_time = every if every else float("inf")
-        self.written: list[Path] = []
+        # a restarted run keeps counting the files already there (``keep`` across restarts)
+        self.written: list[Path] = sorted(self.folder.glob("checkpoint_*.h5"))
+
+    def resume_at(self, t: float) -> None:
+        """Continue the schedule of a run restarted at time ``t`` (next: after ``t``)."""
+        if self.every:
+            self.next_time = (math.floor(t / self.every + 1e-9) + 1) * self.every
 
     def due(self, t: float) -> bool:
         """Whether the schedule asks for a checkpoint at time ``t``."""
@@ -155,6 +162,7 @@ class Checkpointer:
         if pause:
             time.sleep(float(pause))
         os.replace(tmp, path)
-        self.written.append(path)
+        if path not in self.written:
+            self.written.append(path)
         while len(self.written) > self.keep:
             self.written.pop(0).unlink(missing_ok=True)
