@@ -40,11 +40,12 @@ def main(argv: list[str]) -> int:
     comm = MPI.COMM_WORLD
     from fem_runout.ensemble.driver import prepare, run_ensemble
 
-    if first_error_everywhere(comm, lambda: prepare(args.case, args.ensemble, args.overrides,
-                                                    args.out)):
+    plans: list = []
+    if first_error_everywhere(comm, lambda: plans.append(prepare(args.case, args.ensemble,
+                                                                 args.overrides, args.out))):
         return 2
     result = run_ensemble(args.case, args.ensemble, overrides=args.overrides, out=args.out,
-                          comm=comm, quiet=args.quiet)
+                          comm=comm, quiet=args.quiet, plan=plans[0])
     if comm.rank == 0 and not args.quiet:
         s = result.summary
         print(f"ensemble: {s['members']} members ({result.ran} run now, {s['failed']} failed); "

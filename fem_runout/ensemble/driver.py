@@ -95,7 +95,8 @@ def _progress(total: int, done: int, quiet: bool):
 
 
 def run_ensemble(case_path: str | Path, spec_path: str | Path, *, overrides: Sequence[Any] = (),
-                 out: str | Path | None = None, comm=None, quiet: bool = True) -> EnsembleResult:
+                 out: str | Path | None = None, comm=None, quiet: bool = True,
+                 plan: _Plan | None = None) -> EnsembleResult:
     """Run the members not finished yet and write the products (collective on ``comm``).
 
     Args:
@@ -105,13 +106,14 @@ def run_ensemble(case_path: str | Path, spec_path: str | Path, *, overrides: Seq
         out: The ensemble's folder (default: the file's ``output.dir``).
         comm: Communicator of the whole ensemble (default COMM_WORLD).
         quiet: No progress bar.
+        plan: The result of :func:`prepare` for these arguments, if already made.
     """
     from mpi4py import MPI
 
     from fem_runout.ensemble.products import write_products
 
     comm = comm or MPI.COMM_WORLD
-    plan = prepare(case_path, spec_path, overrides, out)
+    plan = plan or prepare(case_path, spec_path, overrides, out)
     records = {m.index: finished(m, plan.out) for m in plan.members} if comm.rank == 0 else {}
     todo = comm.bcast([i for i, r in records.items() if r is None], root=0)
     if comm.rank == 0:
