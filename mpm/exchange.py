@@ -16,7 +16,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["Box", "FoldExchange"]
+__all__ = ["Box", "FoldExchange", "p2g_bounds"]
 
 
 @dataclass(frozen=True)
@@ -95,3 +95,20 @@ class FoldExchange:
         if self.comm.size > 1:
             self.comm.Allreduce(MPI.IN_PLACE, out, op=MPI.SUM)
         return out[..., 0] + out[..., 1]
+
+
+def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """Global bounds of any P2G contribution per column (collective: one max reduction).
+
+    Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
+    ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
+    depend on which rank holds which particle, and so would the exact sums' folds.
+
+    Args:
+        local: This rank's maxima from :func:`mpm.forces.transfer_bounds` (the first 11).
+        comm: Communicator.
+    """
+    glob = np.nan_to_num(np.array(local[:11]), nan=np.inf, posinf=1e300)
+    comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
+    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob
+    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume])

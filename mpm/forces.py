@@ -104,7 +104,7 @@ def _bound(m, x):
 @numba.njit(cache=True)
 def transfer_bounds(basis, mass, u, v, forces, area,
                     volume):
-    """Per-rank maxima for :func:`mpm.solver.p2g_bounds`, one pass.
+    """Per-rank maxima for :func:`mpm.exchange.p2g_bounds`, one pass.
 
     Returns:
         (15,) ``max |m|, |m u|, |m v|, |body x|, |body y|, |t_xx|, |t_yy|, |t_xy|``, a bound

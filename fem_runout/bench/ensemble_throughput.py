@@ -8,7 +8,9 @@ Usage::
 Each run is a fresh ``mpiexec -n R python -m fem_runout ensemble`` into its own folder (no
 member is reused); the wall time is the whole command's. The table is printed and, with
 ``--doc``, written between the doc's ``<!-- throughput -->`` markers (appended to the rows
-already there, so both methods can be measured in turn).
+already there, so both methods can be measured in turn). The ensemble file is copied with
+its keys in their order, so ``--members`` equal to the file's gives the file's members;
+``--keep DIR`` keeps the side-by-side run's members and products.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ranks", type=int, default=2)
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--doc", type=Path)
+    parser.add_argument("--keep", type=Path,
+                        help="move the side-by-side run's folder (members, products) here")
 
 
 def _timed(ranks: int, case: str, spec: Path, out: Path, overrides: list[str]) -> float:
@@ -57,9 +61,12 @@ def main(args: argparse.Namespace) -> int:
     work = Path(tempfile.mkdtemp(prefix="ensemble_throughput_"))
     try:
         spec_path = work / "ensemble.yaml"
-        spec_path.write_text(yaml.safe_dump(spec))
-        one = _timed(1, args.case, spec_path, work / "one", args.overrides)
+        spec_path.write_text(yaml.safe_dump(spec, sort_keys=False))  # the file's order of
+        one = _timed(1, args.case, spec_path, work / "one", args.overrides)  # `vary`: members
         many = _timed(args.ranks, args.case, spec_path, work / "many", args.overrides)
+        if args.keep is not None:
+            shutil.rmtree(args.keep, ignore_errors=True)
+            shutil.move(work / "many", args.keep)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     row = (f"| {Path(args.case).name} {' '.join(args.overrides)} | {args.members} | {one:.1f} | "

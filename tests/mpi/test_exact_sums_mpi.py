@@ -13,11 +13,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.exact_sum import exact_total, fold_extractors
-from mpm.exchange import FoldExchange
+from mpm.exchange import FoldExchange, p2g_bounds
 from mpm.forces import transfer_bounds
 from mpm.kernels import p2g_momentum
 from mpm.nodal import NodalGrid
-from mpm.solver import p2g_bounds
 
 WORLD = MPI.COMM_WORLD
 
