@@ -63,7 +63,7 @@ def build_problem(case: Case, comm: MPI.Comm) -> Problem:
     u = np.broadcast_to(np.asarray(u_fn(x, y), float), x.shape)
     v = np.broadcast_to(np.asarray(v_fn(x, y), float), x.shape)
     num = case.numerics
-    slope = slope_geometry(disc, init["z"], case.gravity, case.model.curvature) \
+    slope = slope_geometry(disc, init["z"], case.gravity, case.curvature) \
         if case.slope_form else None
     return Problem(
         case=case, disc=disc, init=init, velocity=(u, v), gravity=case.gravity,

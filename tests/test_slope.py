@@ -93,6 +93,14 @@ def test_curvature_needs_the_slope_form():
     assert not case("ritter").slope_form and case("ritter", "model.form=slope").slope_form
 
 
+def test_curvature_is_on_by_default_with_the_slope_form():
+    """As com1DFA (``curvAccInFriction = 1``) and RAMMS; off in the horizontal form."""
+    assert not case("ritter").curvature
+    assert case("ritter", "model.form=slope").curvature
+    assert not case("ritter", "model.form=slope", "model.curvature=false").curvature
+    assert case("ritter", "model.form=slope", "model.curvature=true").curvature
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_voellmy_sheet_reaches_the_slope_terminal_speed(method):
     """U(t) of a sheet on 35° (U_∞ = 14.3 m/s): TG2-PC first order, DAMPM within 2e-3."""

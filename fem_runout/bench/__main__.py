@@ -8,6 +8,7 @@ from types import ModuleType
 from fem_runout.bench import (
     before_after,
     dampm_report,
+    dry_sensitivity,
     ensemble_report,
     ensemble_throughput,
     footprint,
@@ -25,6 +26,7 @@ COMMANDS: dict[str, ModuleType] = {
     "tg2-report": tg2_report,
     "dampm-report": dampm_report,
     "real-case": real_case,
+    "dry-sensitivity": dry_sensitivity,
     "before-after": before_after,
     "peers": peers,
     "footprint": footprint,

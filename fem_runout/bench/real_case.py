@@ -22,12 +22,13 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from fem_runout.methods import default_method, method_names
 
-__all__ = ["HELP", "add_arguments", "format_table", "main"]
+__all__ = ["HELP", "add_arguments", "format_table", "main", "run_case"]
 
 HELP = "run the real-terrain case with a method at 1 and 2 ranks; update docs/real_terrain.md"
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,10 +64,10 @@ def _out_dir(name: str, method: str, ranks: int) -> Path:
     return ROOT / "results" / f"{name}_{method}_np{ranks}"
 
 
-def _run(case: Path, method: str, ranks: int, out: Path) -> None:
-    """Run the case with the command line (one thread per rank)."""
+def run_case(case: Path, method: str, ranks: int, out: Path, extra: Sequence[str] = ()) -> None:
+    """Run the case with the command line (one thread per rank; ``extra`` arguments)."""
     cmd = [sys.executable, "-m", "fem_runout", str(case), "--method", method, "--out",
-           str(out), "--overwrite"]
+           str(out), "--overwrite", "--quiet", *extra]
     if ranks > 1:
         cmd = [str(Path(sys.executable).parent / "mpiexec"), "-n", str(ranks), *cmd]
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
@@ -102,7 +103,7 @@ def main(args: argparse.Namespace) -> int:
     for ranks in args.ranks:
         out = _out_dir(name, args.method, ranks)
         if not args.collect:
-            _run(args.case, args.method, ranks, out)
+            run_case(args.case, args.method, ranks, out)
         summary = json.loads((out / "summary.json").read_text())
         rows.append({key: summary[key] for key, _, _ in COLUMNS if key in summary})
     store.write_text(json.dumps(rows, indent=1) + "\n")

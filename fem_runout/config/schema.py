@@ -184,11 +184,12 @@ class ModelSpec(StrictSpec):
             acceleration, friction on the slope-normal thickness and the speed along the bed).
             Default: ``slope`` with ``terrain.dem``, else ``horizontal``.
         curvature: Add the centrifugal acceleration ``u·H·u`` of a curved bed to the normal
-            stress of the friction (``slope`` form only).
+            stress of the friction (``slope`` form only). Default: on with the ``slope``
+            form, as in com1DFA (``curvAccInFriction = 1``) and RAMMS.
     """
 
     form: Literal["horizontal", "slope"] | None = None
-    curvature: Bool = False
+    curvature: Bool | None = None
 
 
 class CheckpointSpec(StrictSpec):
@@ -320,6 +321,13 @@ class Case(StrictSpec):
             raise SpecError("needs model.form: slope (the default with terrain.dem)",
                             "model.curvature")
         return self
+
+    @property
+    def curvature(self) -> bool:
+        """True when the friction feels the bed's curvature (default: with the slope form)."""
+        if self.model.curvature is None:
+            return self.slope_form
+        return bool(self.model.curvature)
 
     @property
     def slope_form(self) -> bool:
