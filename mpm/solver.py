@@ -319,10 +319,13 @@ class MPMSolver:
         mvx, mvy = self._remapped_velocity()
         if self.friction is None:
             return mvx, mvy
-        speed = np.hypot(vx, vy)
-        top = np.maximum(np.hypot(mvx, mvy), speed)
+        sums = self._own  # both velocities are zero off the nodes with mass
+        act = sums.act
+        ax, ay = mvx[act], mvy[act]
+        speed = np.hypot(vx[act], vy[act])
+        top = np.maximum(np.hypot(ax, ay), speed)
         scale = np.divide(speed, top, out=np.ones_like(top), where=top > 0.0)
-        return mvx * scale, mvy * scale
+        return self._put("svx", sums, ax * scale), self._put("svy", sums, ay * scale)
 
     def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
         """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""
