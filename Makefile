@@ -34,14 +34,14 @@ demo: setup
 
 test: setup
 	@status=0; \
-	$(VENV)/bin/ruff check fem_runout mpm tests || status=1; \
+	$(VENV)/bin/ruff check fem_runout mpm tests peers || status=1; \
 	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests --ignore=tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n 3 $(PY) -m pytest -q -x $(RANK3_TESTS) || status=1; \
 	exit $$status
 
 lint: setup
-	$(VENV)/bin/ruff check fem_runout mpm tests
+	$(VENV)/bin/ruff check fem_runout mpm tests peers
 
 # the suite runs every benchmark with every implemented method on 1 and 2 ranks (< 30 min);
 # footprint: avaKot on its DEM and on a 4x larger padded one, both methods (about 6 min);

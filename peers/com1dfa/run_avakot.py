@@ -15,7 +15,6 @@ repo).  Results (pft/pfv/ppr/release-thickness rasters, summary.json) go to
 import argparse
 import configparser
 import json
-import math
 import os
 import pathlib
 import re
@@ -52,13 +51,33 @@ OVERRIDES = {
 
 
 def parse_args():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Parse the command line; ``--set`` items go into OVERRIDES."""
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--out", default="/tmp/com1dfa_avakot/out", help="output folder")
-    p.add_argument("--work", default="/tmp/com1dfa_avakot", help="work folder (AvaFrame avalanche dir is created in it)")
-    p.add_argument("--data", default=str(DEFAULT_DATA), help="data folder containing avaKot/ (env FEM_RUNOUT_DATA)")
-    p.add_argument("--no-report", action="store_true", help="skip AvaFrame's plots/report (FLAGS savePlot/createReport)")
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.key=value",
-                   help="extra com1DFA setting for a sensitivity run, e.g. GENERAL.viscOption=0")
+    p.add_argument(
+        "--work",
+        default="/tmp/com1dfa_avakot",
+        help="work folder (AvaFrame avalanche dir is created in it)",
+    )
+    p.add_argument(
+        "--data",
+        default=str(DEFAULT_DATA),
+        help="data folder containing avaKot/ (env FEM_RUNOUT_DATA)",
+    )
+    p.add_argument(
+        "--no-report",
+        action="store_true",
+        help="skip AvaFrame's plots/report (FLAGS savePlot/createReport)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.key=value",
+        help="extra com1DFA setting for a sensitivity run, e.g. GENERAL.viscOption=0",
+    )
     args = p.parse_args()
     for item in args.set:
         key, value = item.split("=", 1)
@@ -68,18 +87,20 @@ def parse_args():
 
 
 def check_outside_repo(path, what):
+    """Return ``path`` resolved; exit if it lies inside this repository."""
     path = pathlib.Path(path).resolve()
     if path == REPO or REPO in path.parents:
-        sys.exit("%s (%s) must be outside the repository %s" % (what, path, REPO))
+        sys.exit(f"{what} ({path}) must be outside the repository {REPO}")
     return path
 
 
 def prepare_ava_dir(data, work):
+    """Copy the avaKot DEM and release into a fresh AvaFrame avalanche folder."""
     src = data / "avaKot"
     dem = src / "avaKot.asc"
     rel = sorted((src / "REL").glob("relKot.*"))
     if not dem.is_file() or not any(r.suffix == ".shp" for r in rel):
-        sys.exit("avaKot input data not found under %s" % src)
+        sys.exit(f"avaKot input data not found under {src}")
     ava = work / "avaKot"
     if ava.exists():
         shutil.rmtree(ava)  # AvaFrame refuses to run if Work/ exists; start clean every time
@@ -91,6 +112,7 @@ def prepare_ava_dir(data, work):
 
 
 def write_override(work):
+    """Write the com1DFA override ini of OVERRIDES; return its path."""
     cfg = configparser.ConfigParser()
     cfg.optionxform = str
     for sec, kv in OVERRIDES.items():
@@ -102,6 +124,7 @@ def write_override(work):
 
 
 def read_raster(path):
+    """Return a raster's first band (nodata as NaN), transform and profile."""
     import rasterio
 
     with rasterio.open(path) as src:
@@ -113,16 +136,27 @@ def read_raster(path):
 
 
 def write_tif(path, arr, transform):
+    """Write ``arr`` as a GeoTIFF (NaN as nodata -9999)."""
     import rasterio
 
-    prof = dict(driver="GTiff", height=arr.shape[0], width=arr.shape[1], count=1, dtype="float64",
-                crs="EPSG:%d" % EPSG, transform=transform, nodata=-9999.0, compress="lzw")
+    prof = dict(
+        driver="GTiff",
+        height=arr.shape[0],
+        width=arr.shape[1],
+        count=1,
+        dtype="float64",
+        crs=f"EPSG:{EPSG}",
+        transform=transform,
+        nodata=-9999.0,
+        compress="lzw",
+    )
     a = np.where(np.isnan(arr), -9999.0, arr)
     with rasterio.open(path, "w", **prof) as dst:
         dst.write(a, 1)
 
 
 def cell_centres(transform, shape):
+    """Return the x and y of the cell centres of a raster grid."""
     rows, cols = np.indices(shape)
     x = transform.c + (cols + 0.5) * transform.a + (rows + 0.5) * transform.b
     y = transform.f + (cols + 0.5) * transform.d + (rows + 0.5) * transform.e
@@ -130,6 +164,7 @@ def cell_centres(transform, shape):
 
 
 def main():
+    """Run com1DFA on avaKot and write its rasters and metrics to ``--out``."""
     args = parse_args()
     data = pathlib.Path(args.data).resolve()
     work = check_outside_repo(args.work, "--work")
@@ -171,7 +206,9 @@ def main():
     rho = float(cfgCom["GENERAL"]["rho"])
 
     # --- mass balance file: time, current mass, ...
-    mb = np.loadtxt(ava / "Outputs" / "com1DFA" / ("mass_%s.txt" % sim), delimiter=",", skiprows=1, ndmin=2)
+    mb = np.loadtxt(
+        ava / "Outputs" / "com1DFA" / (f"mass_{sim}.txt"), delimiter=",", skiprows=1, ndmin=2
+    )
     t_end = float(mb[-1, 0])
     m_ini, m_fin = float(mb[0, 1]), float(mb[-1, 1])
 
@@ -187,14 +224,14 @@ def main():
     arrays = {}
     transform = None
     for rt in ("pft", "pfv", "ppr"):
-        f = sorted(peak.glob("%s*_%s.*" % (sim, rt)))
+        f = sorted(peak.glob(f"{sim}*_{rt}.*"))
         if not f:
             continue
         a, tr, _ = read_raster(f[0])
         transform = tr if transform is None else transform
-        dst = out / ("%s.tif" % rt)
+        dst = out / (f"{rt}.tif")
         write_tif(dst, a, tr)
-        shutil.copy2(f[0], out / ("%s_native%s" % (rt, f[0].suffix)))
+        shutil.copy2(f[0], out / (f"{rt}_native{f[0].suffix}"))
         rasters[rt] = str(dst)
         arrays[rt] = a
     relf = sorted((ava / "Outputs" / "internalRasters").glob("releaseRaster.*"))
@@ -228,28 +265,47 @@ def main():
     if demA.shape == pft.shape:
         if "relth" in arrays:
             relmask = np.nan_to_num(arrays["relth"]) > 0
-            src = "max DEM (%s) where release thickness raster > 0" % dem_file.name
+            src = f"max DEM ({dem_file.name}) where release thickness raster > 0"
             metrics["release_raster_cells"] = int(relmask.sum())
-            metrics["release_raster_sum_th_x_cellarea_m3"] = float(np.nansum(arrays["relth"]) * cell_area)
+            metrics["release_raster_sum_th_x_cellarea_m3"] = float(
+                np.nansum(arrays["relth"]) * cell_area
+            )
         else:  # fallback: cell centres inside the release polygon
             import shapefile
             from shapely.geometry import Point, shape
 
-            poly = [shape(s.__geo_interface__) for s in shapefile.Reader(str(ava / "Inputs" / "REL" / "relKot.shp")).shapes()]
-            relmask = np.array([[any(pg.contains(Point(xx, yy)) for pg in poly) for xx, yy in zip(xr, yr)]
-                                for xr, yr in zip(x, y)])
-            src = "max DEM (%s) of cell centres inside relKot.shp" % dem_file.name
+            poly = [
+                shape(s.__geo_interface__)
+                for s in shapefile.Reader(str(ava / "Inputs" / "REL" / "relKot.shp")).shapes()
+            ]
+            relmask = np.array(
+                [
+                    [
+                        any(pg.contains(Point(xx, yy)) for pg in poly)
+                        for xx, yy in zip(xr, yr, strict=False)
+                    ]
+                    for xr, yr in zip(x, y, strict=False)
+                ]
+            )
+            src = f"max DEM ({dem_file.name}) of cell centres inside relKot.shp"
         z = np.where(relmask, demA, -np.inf)
         i, j = np.unravel_index(np.argmax(z), z.shape)
-        metrics["release_top_cell"] = {"x": float(x[i, j]), "y": float(y[i, j]), "z": float(demA[i, j]),
-                                       "source": src}
+        metrics["release_top_cell"] = {
+            "x": float(x[i, j]),
+            "y": float(y[i, j]),
+            "z": float(demA[i, j]),
+            "source": src,
+        }
         for thr in (0.01, 0.1):
             mask = pft > thr
             d = np.hypot(x - x[i, j], y - y[i, j])
             k = np.argmax(np.where(mask, d, -1.0))
-            metrics["runout_m_pft_gt_%g" % thr] = float(d.flat[k])
-            metrics["runout_point_pft_gt_%g" % thr] = {"x": float(x.flat[k]), "y": float(y.flat[k]),
-                                                       "z": float(demA.flat[k])}
+            metrics[f"runout_m_pft_gt_{thr:g}"] = float(d.flat[k])
+            metrics[f"runout_point_pft_gt_{thr:g}"] = {
+                "x": float(x.flat[k]),
+                "y": float(y.flat[k]),
+                "z": float(demA.flat[k]),
+            }
 
     def col(name):
         return float(simDF[name].iloc[0]) if name in simDF.columns else None
@@ -263,31 +319,67 @@ def main():
         "avalanche_dir": str(ava),
         "data_dir": str(data),
         "settings_changed": {"com1DFA": OVERRIDES, "avaframeCfg": main_changed},
-        "settings_used_GENERAL": {k: cfgCom["GENERAL"][k] for k in (
-            "simTypeList", "frictModel", "muvoellmy", "xsivoellmy", "rho", "meshCellSize", "stopCritType",
-            "stopCrit", "relThFromFile", "dt", "tEnd", "sphKernelRadius", "massPerParticleDeterminationMethod",
-            "deltaTh", "hmin", "curvAccInFriction", "explicitFriction", "seed", "initPartDistType")},
-        "release_thickness_note": "thickness attribute of relKot.shp (1.0 m), interpreted by com1DFA as slope-normal",
+        "settings_used_GENERAL": {
+            k: cfgCom["GENERAL"][k]
+            for k in (
+                "simTypeList",
+                "frictModel",
+                "muvoellmy",
+                "xsivoellmy",
+                "rho",
+                "meshCellSize",
+                "stopCritType",
+                "stopCrit",
+                "relThFromFile",
+                "dt",
+                "tEnd",
+                "sphKernelRadius",
+                "massPerParticleDeterminationMethod",
+                "deltaTh",
+                "hmin",
+                "curvAccInFriction",
+                "explicitFriction",
+                "seed",
+                "initPartDistType",
+            )
+        },
+        "release_thickness_note": (
+            "thickness attribute of relKot.shp (1.0 m), interpreted by com1DFA as slope-normal"
+        ),
         "release_area_info": rel_info,
-        "released_volume_m3": float(rel_info["Model release volume [m3]"]) if "Model release volume [m3]" in rel_info else m_ini / rho,
+        "released_volume_m3": float(rel_info["Model release volume [m3]"])
+        if "Model release volume [m3]" in rel_info
+        else m_ini / rho,
         "initial_mass_kg": m_ini,
         "final_mass_kg": m_fin,
         "final_volume_m3": m_fin / rho,
-        "n_particles_initial": int(float(simDF["nPart"].iloc[0])) if "nPart" in simDF.columns else None,
+        "n_particles_initial": int(float(simDF["nPart"].iloc[0]))
+        if "nPart" in simDF.columns
+        else None,
         "n_particles_final": n_part_final,
         "simulation_end_time_s": t_end,
-        "stop_info": {k: v for k, v in rep.get("Simulation Parameters", {}).items()
-                      if k in ("Stop criterion", "Process run time [s]", "Computation time [s]")},
+        "stop_info": {
+            k: v
+            for k, v in rep.get("Simulation Parameters", {}).items()
+            if k in ("Stop criterion", "Process run time [s]", "Computation time [s]")
+        },
         "n_iterations": col("nIter"),
         "wall_time_time_loop_s": col("timeLoop"),
         "wall_time_com1DFAMain_s": t_main,
         "rasters": rasters,
-        "grid": {"cellsize": csz, "ncols": int(pft.shape[1]), "nrows": int(pft.shape[0]),
-                 "xll_corner": float(transform.c), "yll_corner": float(transform.f + pft.shape[0] * transform.e),
-                 "crs": "EPSG:%d" % EPSG},
+        "grid": {
+            "cellsize": csz,
+            "ncols": int(pft.shape[1]),
+            "nrows": int(pft.shape[0]),
+            "xll_corner": float(transform.c),
+            "yll_corner": float(transform.f + pft.shape[0] * transform.e),
+            "crs": f"EPSG:{EPSG}",
+        },
         "metrics": metrics,
     }
-    for f in list(ava.glob("runCom1DFA_avaKot_*.log")) + [ava / "Outputs" / "com1DFA" / ("mass_%s.txt" % sim)]:
+    for f in list(ava.glob("runCom1DFA_avaKot_*.log")) + [
+        ava / "Outputs" / "com1DFA" / (f"mass_{sim}.txt")
+    ]:
         shutil.copyfile(f, out / f.name)
     shutil.copyfile(override, out / override.name)
     summary["wall_time_total_s"] = time.time() - T_START

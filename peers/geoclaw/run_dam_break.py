@@ -1,8 +1,9 @@
-"""GeoClaw (clawpack 5.14.0) on the inclined dry-bed dam break of ``cases/inclined_dam_break.yaml``.
+r"""GeoClaw (clawpack 5.14.0) on the inclined dry-bed dam break (cases/inclined_dam_break.yaml).
 
 Run it with the GeoClaw venv's python (see ``peers/geoclaw/setup.sh``)::
 
-    $PEERS_VENV/bin/python peers/geoclaw/run_dam_break.py --nx 330 --ny 33 --out /tmp/geoclaw_dam_break
+    $PEERS_VENV/bin/python peers/geoclaw/run_dam_break.py --nx 330 --ny 33 \
+        --out /tmp/geoclaw_dam_break
 
 Case: bed ``Z = 100 - x/3`` on ``[0, xmax] x [0, 20]``, water at rest with surface 100 m behind
 the dam ``x <= 20`` (``h = x/3``), dry elsewhere, g = 9.81, no friction, no Coriolis, extrapolation
@@ -98,7 +99,9 @@ def clawpack_version() -> str:
 
 def claw_dir() -> Path:
     """``$CLAW`` or the sdist tree unpacked by setup.sh under the venv."""
-    claw = Path(os.environ.get("CLAW") or Path(sys.prefix) / "src" / f"clawpack-{clawpack_version()}")
+    claw = Path(
+        os.environ.get("CLAW") or Path(sys.prefix) / "src" / f"clawpack-{clawpack_version()}"
+    )
     if not (claw / "geoclaw" / "src" / "2d" / "shallow" / "Makefile.geoclaw").is_file():
         sys.exit(f"GeoClaw Fortran sources not found under CLAW={claw}: run peers/geoclaw/setup.sh")
     return claw
@@ -107,13 +110,18 @@ def claw_dir() -> Path:
 def build(fflags: str) -> tuple[Path, str]:
     """Compile (or reuse) xgeoclaw; return its path and the make command used."""
     if shutil.which("gfortran") is None:
-        sys.exit("gfortran not found: install it with your package manager (e.g. apt-get install gfortran)")
+        sys.exit(
+            "gfortran not found: install it with your package manager "
+            "(e.g. apt-get install gfortran)"
+        )
     claw = claw_dir()
-    fc_version = subprocess.run(["gfortran", "--version"], capture_output=True, text=True,
-                                check=True).stdout.splitlines()[0]
+    fc_version = subprocess.run(
+        ["gfortran", "--version"], capture_output=True, text=True, check=True
+    ).stdout.splitlines()[0]
     makefile = MAKEFILE.format(fflags=fflags)
-    key = hashlib.sha256("\n".join([clawpack_version(), str(claw), fc_version, makefile,
-                                    QINIT_F90]).encode()).hexdigest()[:12]
+    key = hashlib.sha256(
+        "\n".join([clawpack_version(), str(claw), fc_version, makefile, QINIT_F90]).encode()
+    ).hexdigest()[:12]
     bdir = Path(sys.prefix) / "share" / "geoclaw_build" / key
     exe = bdir / "xgeoclaw"
     cmd = f"make -C {bdir} .exe CLAW={claw} FC=gfortran CLAW_PYTHON={sys.executable}"
@@ -134,21 +142,26 @@ def build(fflags: str) -> tuple[Path, str]:
 
 
 def write_topo(path: Path, xmax: float, spacing: float = 2.0, margin: float = 10.0) -> None:
-    """Topotype-3 file of ``Z = 100 - x/3`` (linear, hence exact under GeoClaw's bilinear
-    cell integration) covering the domain with a margin."""
+    """Write a topotype-3 file of ``Z = 100 - x/3`` covering the domain with a margin.
+
+    The bed is linear, hence exact under GeoClaw's bilinear cell integration.
+    """
     x = np.arange(-margin, xmax + margin + 0.5 * spacing, spacing)
     y = np.arange(-margin, Y_EXTENT + margin + 0.5 * spacing, spacing)
     z = np.tile(ETA_DAM - SLOPE * x, (y.size, 1))  # rows from north to south (y-invariant)
-    header = (f"{x.size} ncols\n{y.size} nrows\n{x[0]:.6f} xlower\n{y[0]:.6f} ylower\n"
-              f"{spacing:.6f} cellsize\n-99999 nodata_value\n")
+    header = (
+        f"{x.size} ncols\n{y.size} nrows\n{x[0]:.6f} xlower\n{y[0]:.6f} ylower\n"
+        f"{spacing:.6f} cellsize\n-99999 nodata_value\n"
+    )
     with path.open("w") as f:
         f.write(header)
         np.savetxt(f, z, fmt="%.8f")
 
 
-def write_data(run: Path, nx: int, ny: int, xmax: float, tfinal: float, cfl: float,
-               times: list[float]) -> None:
-    """The setrun: write GeoClaw's ``*.data`` files, the topography and ``dam.data`` in ``run``."""
+def write_data(
+    run: Path, nx: int, ny: int, xmax: float, tfinal: float, cfl: float, times: list[float]
+) -> None:
+    """Write GeoClaw's ``*.data`` files (the setrun), the topography and ``dam.data`` in ``run``."""
     from clawpack.clawutil import data
 
     rundata = data.ClawRunData("geoclaw", 2)
@@ -218,7 +231,7 @@ def read_depth(run: Path, frame: int) -> tuple[float, np.ndarray, np.ndarray]:
         i0 = int(round((p.lower_global[0] - x0) / dx))
         j0 = int(round((p.lower_global[1] - y0) / dy))
         mx, my = p.num_cells_global
-        h[j0:j0 + my, i0:i0 + mx] = st.q[0].T
+        h[j0 : j0 + my, i0 : i0 + mx] = st.q[0].T
     if np.isnan(h).any():
         raise RuntimeError(f"frame {frame}: patches do not cover the domain")
     return float(sol.t), x0 + (np.arange(nx) + 0.5) * dx, h
@@ -226,13 +239,15 @@ def read_depth(run: Path, frame: int) -> tuple[float, np.ndarray, np.ndarray]:
 
 def front(x: np.ndarray, h: np.ndarray, threshold: float) -> tuple[float, float]:
     """Front (largest cell-centre x with ``h > threshold``): mean over rows, and mid row."""
-    rows = [float(x[np.nonzero(r > threshold)[0][-1]]) if (r > threshold).any() else float("nan")
-            for r in h]
+    rows = [
+        float(x[np.nonzero(r > threshold)[0][-1]]) if (r > threshold).any() else float("nan")
+        for r in h
+    ]
     return float(np.mean(rows)), rows[len(rows) // 2]
 
 
 def count_steps(fort_amr: Path) -> int:
-    """Number of level-1 time steps taken (one ``AMRCLAW: level 1`` line each)."""
+    """Count the level-1 time steps taken (one ``AMRCLAW: level 1`` line each)."""
     return len(re.findall(r"AMRCLAW: level\s+1\s+CFL", fort_amr.read_text()))
 
 
@@ -241,8 +256,12 @@ def parse_args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--nx", type=int, default=330)
     ap.add_argument("--ny", type=int, default=33, help="cells across the 20 m width")
-    ap.add_argument("--xmax", type=float, default=300.0,
-                    help="domain length [m] (450 keeps the 11 s front inside)")
+    ap.add_argument(
+        "--xmax",
+        type=float,
+        default=300.0,
+        help="domain length [m] (450 keeps the 11 s front inside)",
+    )
     ap.add_argument("--out", type=Path, default=Path("/tmp/geoclaw_dam_break"))
     ap.add_argument("--tfinal", type=float, default=11.0)
     ap.add_argument("--cfl", type=float, default=0.9)
@@ -295,32 +314,78 @@ def main() -> None:
     f55, f11 = pick(5.5, 0), pick(float(args.tfinal), 0)
     e55, e11 = exact_front(5.5), exact_front(float(args.tfinal))
     summary = {
-        "nx": args.nx, "ny": args.ny, "dx": dx, "dy": Y_EXTENT / args.ny,
-        "xmax": args.xmax, "tfinal": args.tfinal, "cfl": args.cfl, "threshold": args.threshold,
-        "steps": steps, "wall_time": wall,
+        "nx": args.nx,
+        "ny": args.ny,
+        "dx": dx,
+        "dy": Y_EXTENT / args.ny,
+        "xmax": args.xmax,
+        "tfinal": args.tfinal,
+        "cfl": args.cfl,
+        "threshold": args.threshold,
+        "steps": steps,
+        "wall_time": wall,
         "us_per_cell_step": wall / (args.nx * args.ny * steps) * 1e6,
-        "front_5_5": f55, "front_11": f11,
-        "front_5_5_mid_y": pick(5.5, 1), "front_11_mid_y": pick(float(args.tfinal), 1),
-        "exact_5_5": e55, "exact_11": e11,
+        "front_5_5": f55,
+        "front_11": f11,
+        "front_5_5_mid_y": pick(5.5, 1),
+        "front_11_mid_y": pick(float(args.tfinal), 1),
+        "exact_5_5": e55,
+        "exact_11": e11,
         "rel_5_5": abs(f55 / e55 - 1.0) if f55 is not None else None,
         "rel_11": abs(f11 / e11 - 1.0) if f11 is not None else None,
         "front_11_outside_domain": e11 > args.xmax,
         "clawpack_version": clawpack_version(),
-        "omp_num_threads": env["OMP_NUM_THREADS"], "fflags": args.fflags,
-        "settings": {"order": 2, "transverse_waves": 2, "limiter": "mc", "fwaves": True,
-                     "bc_x": "extrap", "bc_y": "wall", "amr_levels_max": 1,
-                     "dry_tolerance": 1e-6, "friction": None, "coriolis": False,
-                     "front": "largest cell-centre x with h > threshold, mean over y rows"},
-        "commands": {"run": " ".join([sys.executable, *sys.argv]), "build": make_cmd,
-                     "xgeoclaw": f"cd {run} && OMP_NUM_THREADS={env['OMP_NUM_THREADS']} {exe}"},
+        "omp_num_threads": env["OMP_NUM_THREADS"],
+        "fflags": args.fflags,
+        "settings": {
+            "order": 2,
+            "transverse_waves": 2,
+            "limiter": "mc",
+            "fwaves": True,
+            "bc_x": "extrap",
+            "bc_y": "wall",
+            "amr_levels_max": 1,
+            "dry_tolerance": 1e-6,
+            "friction": None,
+            "coriolis": False,
+            "front": "largest cell-centre x with h > threshold, mean over y rows",
+        },
+        "commands": {
+            "run": " ".join([sys.executable, *sys.argv]),
+            "build": make_cmd,
+            "xgeoclaw": f"cd {run} && OMP_NUM_THREADS={env['OMP_NUM_THREADS']} {exe}",
+        },
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(json.dumps({k: summary[k] for k in (
-        "nx", "ny", "dx", "steps", "wall_time", "us_per_cell_step", "front_5_5", "front_11",
-        "rel_5_5", "rel_11", "exact_5_5", "exact_11", "clawpack_version")}, indent=2))
+    print(
+        json.dumps(
+            {
+                k: summary[k]
+                for k in (
+                    "nx",
+                    "ny",
+                    "dx",
+                    "steps",
+                    "wall_time",
+                    "us_per_cell_step",
+                    "front_5_5",
+                    "front_11",
+                    "rel_5_5",
+                    "rel_11",
+                    "exact_5_5",
+                    "exact_11",
+                    "clawpack_version",
+                )
+            },
+            indent=2,
+        )
+    )
     if summary["front_11_outside_domain"]:
-        print(f"note: the exact front at t = {args.tfinal} s ({e11:.1f} m) lies beyond xmax = "
-              f"{args.xmax} m; use --xmax 450 for a meaningful 11 s error", file=sys.stderr)
+        print(
+            f"note: the exact front at t = {args.tfinal} s ({e11:.1f} m) lies beyond xmax = "
+            f"{args.xmax} m; use --xmax 450 for a meaningful 11 s error",
+            file=sys.stderr,
+        )
     print(f"summary: {out / 'summary.json'}")
 
 
