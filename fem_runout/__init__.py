@@ -20,9 +20,9 @@ def _one_thread_per_rank() -> None:
     it OpenBLAS starts a worker per rank that spins between calls: 3 busy threads for 2 ranks
     on 2 cores, measured with ``top -H`` under ``mpiexec -n 2 python -m fem_runout``.
     """
-    size = max(int(os.environ.get(k, "1") or 1) for k in
-               ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS"))
-    if size > 1:
+    sizes = (os.environ.get(k, "") for k in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE",
+                                              "MPI_LOCALNRANKS"))
+    if any(v.isdigit() and int(v) > 1 for v in sizes):
         for key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
                     "NUMBA_NUM_THREADS"):
             os.environ.setdefault(key, "1")

@@ -20,7 +20,7 @@ from fem_runout.mesh import Discretization, Side
 from mpm.exchange import Box
 from mpm.gimp import structured_nodes
 
-__all__ = ["GridSums", "NodalGrid", "NodeBuffers"]
+__all__ = ["GridSums", "NodalGrid", "NodeBuffers", "no_faster_than"]
 
 
 class NodeBuffers:
@@ -147,3 +147,16 @@ class NodalGrid:
     def to_local(self, values: np.ndarray) -> np.ndarray:
         """Return the local (owned + ghost) view of a global array."""
         return values[self.node_index]
+
+
+def no_faster_than(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray,
+                   by: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``a`` scaled by ``|b| / max(|a|, |b|)`` (``a`` where ``|a| <= |b|``, 0 at ``b = 0``).
+
+    Continuous in both (no switch): DAMPM's strain velocity against the friction-updated
+    nodal velocity (material friction holds does not deform).
+    """
+    speed = np.hypot(bx, by)
+    top = np.maximum(np.hypot(ax, ay), speed)
+    scale = np.divide(speed, top, out=np.ones_like(top), where=top > 0.0)
+    return ax * scale, ay * scale

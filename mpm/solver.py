@@ -43,7 +43,7 @@ from mpm.gimp import gimp_basis
 from mpm.grid import ParticleGrid
 from mpm.kernels import g2p_flip, g2p_gradient, gimp_interpolate, p2g, p2g_momentum
 from mpm.migrate import balanced_destinations, migrate
-from mpm.nodal import GridSums, NodalGrid, NodeBuffers
+from mpm.nodal import GridSums, NodalGrid, NodeBuffers, no_faster_than
 from mpm.particles import Particles
 from mpm.projection import GridProjector
 from mpm.split import DomainSplitter
@@ -289,11 +289,15 @@ class MPMSolver:
             fy[pos] -= push * side.normal[1]
         return fx, fy
 
-    def _remapped_velocity(self) -> tuple[np.ndarray, np.ndarray]:
-        """MUSL: nodal velocity ``Σ_p m_p v_p^{k+1} N_i / M_i`` from the updated particles.
+    def _strain_velocity(self, vx: np.ndarray, vy: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Nodal velocity of the strain (eq. 40): MUSL ``Σ_p m_p v_p^{k+1} N_i / M_i``.
 
-        A mass-weighted average of particle velocities, so it stays bounded at nodes that
-        carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not).
+        A mass-weighted average of the updated particle velocities, so it stays bounded at
+        nodes that carry little mass (where ``(p_i + Δt f_i)/M_i`` of eq. 37 does not). With
+        friction it is no faster than the nodes' friction-updated ``v_i``
+        (:func:`mpm.nodal.no_faster_than`): the average reaches held nodes from the moving
+        particles beside them, and a column at rest in a deposit kept thickening (an avaKot
+        remnant grew from 4 cm to 7e4 m and collapsed the step).
         """
         p, b, sums = self.particles, self._basis, self._own
         mass = self.rho * p.volume
@@ -302,30 +306,11 @@ class MPMSolver:
         mom = self.exchange.sum(p2g_momentum(b.arrays, mass, p.u, p.v, self._box_args,
                                              ext))[sums.index]
         mass = sums.g[:, 0]
-        vx, vy = mom[:, 0] / mass, mom[:, 1] / mass
-        self._zero_walls(vx, vy)
-        return self._put("mvx", sums, vx), self._put("mvy", sums, vy)
-
-    def _strain_velocity(self, vx: np.ndarray, vy: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Nodal velocity of the strain (eq. 40): the MUSL re-map, no faster than ``v_i``.
-
-        The re-map is a mass-weighted average of particle velocities, so it reaches the
-        nodes friction holds (``v_i = 0``) from the moving particles beside them: a column
-        at rest in a deposit kept thickening while the flow next to it crept (an avaKot
-        remnant grew from 4 cm to 7e4 m and collapsed the step). Scaled by
-        ``|v_i| / max(|v_i|, |v_remap|)`` (continuous; 1 where the re-map is not faster),
-        material friction holds does not deform. Without friction the re-map is unchanged.
-        """
-        mvx, mvy = self._remapped_velocity()
-        if self.friction is None:
-            return mvx, mvy
-        sums = self._own  # both velocities are zero off the nodes with mass
-        act = sums.act
-        ax, ay = mvx[act], mvy[act]
-        speed = np.hypot(vx[act], vy[act])
-        top = np.maximum(np.hypot(ax, ay), speed)
-        scale = np.divide(speed, top, out=np.ones_like(top), where=top > 0.0)
-        return self._put("svx", sums, ax * scale), self._put("svy", sums, ay * scale)
+        mx, my = mom[:, 0] / mass, mom[:, 1] / mass
+        self._zero_walls(mx, my)
+        if self.friction is not None:
+            mx, my = no_faster_than(mx, my, vx[sums.act], vy[sums.act])
+        return self._put("mvx", sums, mx), self._put("mvy", sums, my)
 
     def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
         """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""

@@ -7,7 +7,7 @@ from mpi4py import MPI
 from fem_runout.mesh import build_discretization
 from mpm.gimp import gimp_weights
 from mpm.grid import ParticleGrid
-from mpm.nodal import NodalGrid
+from mpm.nodal import NodalGrid, no_faster_than
 from mpm.particles import Particles, seed_particles
 from mpm.projection import GridProjector, tridiagonal_mass_solve
 from mpm.split import DomainSplitter
@@ -245,3 +245,16 @@ def test_stretch_keeps_the_area_bounds_the_aspect_and_caps_thin_particles(grid):
     assert (p.ly[: n // 2] <= splitter.limit[1]).all()
     q = splitter.split(p)
     assert len(q) == n + (n - n // 2)  # only the thick ones split (once, along x)
+
+
+def test_strain_velocity_is_no_faster_than_the_friction_updated_one():
+    """``a |b| / max(|a|, |b|)``: unchanged when not faster, 0 where held, continuous."""
+    ax, ay = np.array([3.0, 3.0, 3.0, 0.0, 1e-300]), np.array([4.0, 4.0, 4.0, 0.0, 0.0])
+    bx, by = np.array([0.0, 6.0, 3.0, 0.0, 0.0]), np.array([0.0, 8.0, 0.0, 0.0, 0.0])
+    x, y = no_faster_than(ax, ay, bx, by)
+    assert np.allclose(x, [0.0, 3.0, 1.8, 0.0, 0.0], rtol=1e-15, atol=0.0)
+    assert np.allclose(y, [0.0, 4.0, 2.4, 0.0, 0.0], rtol=1e-15, atol=0.0)
+    assert x[1] == 3.0 and y[1] == 4.0 and x[0] == y[0] == 0.0  # exactly kept, exactly held
+    eps = np.array([1e-14, -1e-14])  # a round-off change of |b| moves the result by round-off
+    x1, _ = no_faster_than(np.full(2, 3.0), np.full(2, 4.0), 5.0 + eps, np.zeros(2))
+    assert np.abs(x1 - 3.0).max() <= 1e-14

@@ -46,7 +46,7 @@ def variants(case: Path) -> list[tuple[str, list[str]]]:
     rows = [(f"default (dry {dry:g} m)", [])]
     rows.append((f"dry {dry / 10:g} m", [f"numerics.dry_tolerance={dry / 10!r}"]))
     rows.append((f"dry {dry * 10:g} m", [f"numerics.dry_tolerance={dry * 10:g}"]))
-    thin = dry if thin is None else thin  # default κ: 1e-6 × the deepest release (1 m)
+    thin = dry if thin is None else thin  # no thin_depth in the case: ÷10 of the dry tolerance
     rows.append((f"dry {dry / 10:g} m, thin_depth {thin / 10:g} m",
                  [f"numerics.dry_tolerance={dry / 10!r}", f"numerics.thin_depth={thin / 10!r}"]))
     return rows
@@ -73,7 +73,7 @@ def main(args: argparse.Namespace) -> int:
         for k, (label, overrides) in enumerate(variants(args.case)):
             out = ROOT / "results" / f"sensitivity_{method}_{k}"
             run_case(args.case, method, args.ranks, out,
-                 [x for o in overrides for x in ("--set", o)])
+                     [x for o in overrides for x in ("--set", o)])
             summary = json.loads((out / "summary.json").read_text())
             lines.append(_row(method, label, summary, ref))
             ref = ref or summary
