@@ -46,4 +46,4 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     particles, _ = migrate(grid, particles, balanced_destinations(grid, particles))
     return MPMSolver(disc, grid, particles, init["z"], case.material.density, pb.gravity,
                      pb.friction, pb.rheology, still, num.flip, num.particles_per_direction,
-                     pb.thin_depth, pb.slope)
+                     pb.thin_depth, pb.slope, num.transfer == "apic", num.depth_cap)

@@ -44,8 +44,19 @@ def _box_index(i0, j0, a, b, nx, ny, box):
     return (min(j0 + b, ny) - box[0]) * box[3] + min(i0 + a, nx) - box[1]
 
 
+@numba.njit(cache=True, inline="always")
+def _centre(w, k0, n, p):
+    """Weighted centre ``Σ_a w[p, a] min(k0 + a, n)`` of a particle's nodes, in cell units.
+
+    The GIMP weights reproduce linear functions, so this is the centre ``x̄_p`` of the
+    (clipped) particle domain and ``Σ_i S_ip (x_i - x̄_p) = 0``: APIC's affine part adds no
+    momentum to the grid.
+    """
+    return w[p, 0] * min(k0, n) + w[p, 1] * min(k0 + 1, n) + w[p, 2] * min(k0 + 2, n)
+
+
 @numba.njit(cache=True)
-def p2g(basis, mass, u, v, body_x, body_y, sxx, syy, sxy,
+def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy,
         area, volume, box, ext):
     """Particle-to-grid sums (seed eqs. 33-34), as exact two-fold partial sums.
 
@@ -54,6 +65,8 @@ def p2g(basis, mass, u, v, body_x, body_y, sxx, syy, sxy,
         mass: ``m_p`` [kg].
         u: x-velocity [m/s].
         v: y-velocity [m/s].
+        affine: (4, n) affine velocity ``C_xx, C_xy, C_yx, C_yy`` of APIC [1/s]: node ``i``
+            receives ``m_p S_ip (v_p + C_p (x_i - x̄_p))`` (zeros: the seed's eq. 33).
         body_x: x-force per particle multiplying ``N_i`` (gravity of eq. 34 or 46) [N].
         body_y: y-force per particle multiplying ``N_i`` [N].
         sxx: xx entry of the particle force tensor ``-V_p σ^∇_p`` [N m] (× ``∇N_i``).
@@ -74,18 +87,23 @@ def p2g(basis, mass, u, v, body_x, body_y, sxx, syy, sxy,
     i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 7, 2))
     for p in range(i0.size):
+        xc, yc = _centre(wx, i0[p], nx, p), _centre(wy, j0[p], ny, p)
         for b in range(3):
             if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
                 continue
+            ry = (min(j0[p] + b, ny) - yc) * dy
             for a in range(3):
                 if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
                     continue
+                rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
                 gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
                 _deposit(out, i, 0, mass[p] * w, ext)
-                _deposit(out, i, 1, mass[p] * u[p] * w, ext)
-                _deposit(out, i, 2, mass[p] * v[p] * w, ext)
+                _deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
+                         ext)
+                _deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
+                         ext)
                 _deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
                 _deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
                 _deposit(out, i, 5, area[p] * w, ext)
@@ -94,24 +112,29 @@ def p2g(basis, mass, u, v, body_x, body_y, sxx, syy, sxy,
 
 
 @numba.njit(cache=True)
-def p2g_momentum(basis, mass, u, v, box, ext):
-    """Nodal momentum ``Σ_p m_p v_p N_i`` only, (box nodes, 2, 2) folds (MUSL re-mapping).
+def p2g_momentum(basis, mass, u, v, affine, box, ext):
+    """Nodal momentum ``Σ_p m_p (v_p + C_p (x_i - x̄_p)) N_i`` only, (box nodes, 2, 2) folds.
 
-    The nodes are those of ``box`` (see :func:`p2g`).
+    The MUSL re-mapping; the nodes are those of ``box`` and ``affine`` as in :func:`p2g`.
     """
     i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 2, 2))
     for p in range(i0.size):
+        xc, yc = _centre(wx, i0[p], nx, p), _centre(wy, j0[p], ny, p)
         for b in range(3):
             if wy[p, b] == 0.0:
                 continue
+            ry = (min(j0[p] + b, ny) - yc) * dy
             for a in range(3):
                 if wx[p, a] == 0.0:
                     continue
+                rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                _deposit(out, i, 0, mass[p] * u[p] * w, ext)
-                _deposit(out, i, 1, mass[p] * v[p] * w, ext)
+                _deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
+                         ext)
+                _deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
+                         ext)
     return out
 
 

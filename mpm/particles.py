@@ -25,7 +25,8 @@ from mpm.kernels import interpolate
 __all__ = ["FLOAT_FIELDS", "Particles", "seed_particles"]
 
 #: Per-particle float arrays (the ``id`` is int64).
-FLOAT_FIELDS = ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy")
+FLOAT_FIELDS = ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy",
+                "cxx", "cxy", "cyx", "cyy")
 
 
 @dataclass
@@ -42,6 +43,8 @@ class Particles:
         sxx, syy, sxy: Depth-averaged deviatoric stress ``σ_p`` [Pa] (seed eq. 41).
         cell: Structured cell index ``j nx + i``.
         id: Global particle id.
+        cxx, cxy, cyx, cyy: Affine velocity ``C_p`` of APIC [1/s] (``C_ab = ∂v_a/∂x_b`` of
+            the grid velocity at the particle; zero with the FLIP transfer). Default zeros.
     """
 
     xi: np.ndarray
@@ -57,6 +60,15 @@ class Particles:
     sxy: np.ndarray
     cell: np.ndarray
     id: np.ndarray
+    cxx: np.ndarray | None = None
+    cxy: np.ndarray | None = None
+    cyx: np.ndarray | None = None
+    cyy: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("cxx", "cxy", "cyx", "cyy"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(self.xi.size))
 
     def __len__(self) -> int:
         return int(self.xi.size)
@@ -71,6 +83,22 @@ class Particles:
         """Column area ``A_p = V_p / h_p`` [m²]."""
         return self.volume / self.h
 
+    def affine(self) -> np.ndarray:
+        """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC)."""
+        return np.stack([self.cxx, self.cxy, self.cyx, self.cyy])
+
+    def transfer_speeds(self, dx: float, dy: float, apic: bool
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the velocity a particle gives its nodes: ``|u|, |v|`` without APIC.
+
+        With APIC ``|v_p| + 2 (Δx |C_x.| + Δy |C_.y|)``: a particle's nodes lie within two
+        cells of its domain's centre. They set the exact sums' extractors.
+        """
+        if not apic:
+            return self.u, self.v
+        return (np.abs(self.u) + 2.0 * (dx * np.abs(self.cxx) + dy * np.abs(self.cxy)),
+                np.abs(self.v) + 2.0 * (dx * np.abs(self.cyx) + dy * np.abs(self.cyy)))
+
     def copy(self) -> Particles:
         """Deep copy."""
         return Particles(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
@@ -80,7 +108,7 @@ class Particles:
         return Particles(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
     def pack(self) -> np.ndarray:
-        """(n, 13) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
+        """(n, 17) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
         out = np.empty((len(self), len(FLOAT_FIELDS) + 2))
         for k, name in enumerate(FLOAT_FIELDS):
             out[:, k] = getattr(self, name)
@@ -90,8 +118,12 @@ class Particles:
 
     @classmethod
     def unpack(cls, rows: np.ndarray) -> Particles:
-        """Inverse of :meth:`pack`."""
-        rows = np.ascontiguousarray(rows).reshape(-1, len(FLOAT_FIELDS) + 2)
+        """Inverse of :meth:`pack`; also reads the 13-column rows of older checkpoints."""
+        rows = np.ascontiguousarray(rows)
+        if rows.ndim == 2 and rows.shape[1] == len(FLOAT_FIELDS) - 2:  # before APIC: no C_p
+            rows = np.concatenate([rows[:, :-2], np.zeros((rows.shape[0], 4)), rows[:, -2:]],
+                                  axis=1)
+        rows = rows.reshape(-1, len(FLOAT_FIELDS) + 2)
         data = {name: rows[:, k].copy() for k, name in enumerate(FLOAT_FIELDS)}
         cell = np.ascontiguousarray(rows[:, -2]).view(np.int64).copy()
         return cls(**data, cell=cell, id=np.ascontiguousarray(rows[:, -1]).view(np.int64).copy())

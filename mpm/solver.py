@@ -28,7 +28,6 @@ the well-balanced form of eq. 46 is used: pressure ``½ ρ g (h² - H²)`` and b
 from __future__ import annotations
 
 import numpy as np
-from dolfinx import fem
 from mpi4py import MPI
 
 from fem_runout.exact_sum import extractors, fold_extractors
@@ -38,6 +37,7 @@ from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from mpm.exchange import FoldExchange, p2g_bounds
+from mpm.fields import FieldWriter
 from mpm.forces import particle_forces, transfer_bounds
 from mpm.gimp import gimp_basis
 from mpm.grid import ParticleGrid
@@ -48,10 +48,13 @@ from mpm.particles import Particles
 from mpm.projection import GridProjector
 from mpm.split import DomainSplitter
 
-__all__ = ["COURANT", "MPMSolver"]
+__all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
 
 #: Fraction of the cell crossing time ``Δx / max(|v_p| + sqrt(g h_p))`` given as the stable step.
 COURANT = 0.5
+#: A particle column is at most this many times the depth the particle volumes make on the
+#: grid where it is (:meth:`MPMSolver.update_depth_and_stress`).
+DEPTH_CAP = 3.0
 #: Fraction of the explicit viscous limit ``ρ Δx² / (8 μ)`` of the Newtonian part.
 VISCOUS = 0.5
 
@@ -76,6 +79,10 @@ class MPMSolver:
             seed's form: ``g`` of the body force and the pressure becomes
             ``G_p = cos²θ max(g + u_p·H·u_p, 0)`` at each particle, the friction acts on the
             bed (:mod:`fem_runout.physics.slope`).
+        apic: Use the affine transfer (APIC) instead of the FLIP/PIC blend: the particles
+            take the PIC velocity and the grid velocity's gradient ``C_p`` and give the grid
+            ``m_p S_ip (v_p + C_p (x_i - x̄_p))`` (docs/dampm.md, "Velocity transfer").
+        depth_cap: ``κ`` of :meth:`update_depth_and_stress` (None: the seed's eq. 42 alone).
     """
 
     def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
@@ -83,16 +90,18 @@ class MPMSolver:
                  friction: FrictionLaw | None = None, rheology: Bingham | None = None,
                  still_depth: np.ndarray | None = None, flip: float = 0.0,
                  per_direction: int = 2, thin_depth: float = 0.0,
-                 slope: SlopeGeometry | None = None) -> None:
+                 slope: SlopeGeometry | None = None, apic: bool = False,
+                 depth_cap: float | None = DEPTH_CAP) -> None:
         self.disc, self.grid, self.particles = disc, grid, particles
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
         self.friction, self.rheology = friction, rheology
-        self.flip = float(flip)
+        self.flip, self.apic = (0.0 if apic else float(flip)), bool(apic)
+        self.depth_cap = depth_cap
         self.z = np.asarray(z, dtype=float)
-        self.fields = {k: fem.Function(disc.V, name=k) for k in ("h", "hu", "hv", "z")}
-        self.fields["z"].x.array[:] = self.z
         self.nodal = NodalGrid(disc)
+        self.writer = FieldWriter(disc.V, self.nodal, self.z)
+        self.fields = self.writer.fields
         self.z_g = self.nodal.to_global(self.z)
         self.still_g = None if still_depth is None else self.nodal.to_global(still_depth)
         self.slope_g = None if slope is None else self._global_geometry(slope)
@@ -101,10 +110,6 @@ class MPMSolver:
         self.projector = GridProjector(disc.cells, disc.spacing)
         self.exchange = FoldExchange(self.comm)
         self.buffers = NodeBuffers(self.nodal.n_nodes)
-        self._local_of = np.full(self.nodal.n_nodes, -1, dtype=np.int64)  # global -> local dof
-        self._local_of[self.nodal.node_index] = np.arange(self.nodal.node_index.size)
-        self._written: dict[str, np.ndarray] = {}
-        self._windows: dict[tuple[int, int, int], np.ndarray] = {}
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
         self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
@@ -184,8 +189,12 @@ class MPMSolver:
         else:
             stopped = old_x = old_y = self._put("zero", sums, 0.0)
         p.u, p.v = g2p_flip(b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
+        if self.apic:
+            c = g2p_gradient(b.arrays, vx, vy)
+            p.cxx, p.cxy, p.cyx, p.cyy = (np.ascontiguousarray(c[:, a, k])
+                                          for a in range(2) for k in range(2))
         grad = g2p_gradient(b.arrays, *self._strain_velocity(vx, vy))
-        self.update_depth_and_stress(dt, grad)
+        self.update_depth_and_stress(dt, grad, self._grid_depth())
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
         self.particles = self.splitter.split(self.particles)
@@ -214,7 +223,7 @@ class MPMSolver:
 
     def load_state(self, state: dict) -> None:
         """Continue from :meth:`save_state` (collective; any rank count)."""
-        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, 13))
+        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, 17))
         p = Particles.unpack(np.asarray(rows, dtype=np.float64))
         self.particles, _ = migrate(self.grid, p, balanced_destinations(self.grid, p))
         self.outflow_volume = float(state["outflow"])
@@ -301,10 +310,10 @@ class MPMSolver:
         """
         p, b, sums = self.particles, self._basis, self._own
         mass = self.rho * p.volume
-        ext = extractors([_amax(mass * p.u), _amax(mass * p.v)], self.splitter.next_id,
-                         self.comm)
-        mom = self.exchange.sum(p2g_momentum(b.arrays, mass, p.u, p.v, self._box_args,
-                                             ext))[sums.index]
+        su, sv = p.transfer_speeds(self.grid.dx, self.grid.dy, self.apic)
+        ext = extractors([_amax(mass * su), _amax(mass * sv)], self.splitter.next_id, self.comm)
+        mom = self.exchange.sum(p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
+                                             self._box_args, ext))[sums.index]
         mass = sums.g[:, 0]
         mx, my = mom[:, 0] / mass, mom[:, 1] / mass
         self._zero_walls(mx, my)
@@ -312,9 +321,29 @@ class MPMSolver:
             mx, my = no_faster_than(mx, my, vx[sums.act], vy[sums.act])
         return self._put("mvx", sums, mx), self._put("mvy", sums, my)
 
-    def update_depth_and_stress(self, dt: float, grad: np.ndarray) -> None:
-        """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient."""
+    def _grid_depth(self) -> np.ndarray | None:
+        """Return the depth the particle volumes make on the grid at the particles, or None.
+
+        ``h̄_p = Σ_i S_ip h^L_i`` with the lumped projection ``h^L_i = Σ_q V_q S_iq / M_i``
+        (non-negative and continuous in the data); None without a depth cap.
+        """
+        if self.depth_cap is None:
+            return None
+        sums = self._own
+        lumped = self._put("lumped", sums, sums.g[:, 6] / self.projector.lumped_mass[sums.act])
+        return gimp_interpolate(self._basis.arrays, lumped)
+
+    def update_depth_and_stress(self, dt: float, grad: np.ndarray,
+                                grid_depth: np.ndarray | None = None) -> None:
+        """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient.
+
+        With ``grid_depth`` (:meth:`_grid_depth`) the depth entering eq. 42 is first capped,
+        ``h_p ← min(h_p, κ h̄_p)`` with ``κ`` = ``depth_cap``: where particles pile up, eq. 42's
+        Lagrangian depths drift far above the grid's (docs/dampm.md, "Depth cap").
+        """
         p = self.particles
+        if grid_depth is not None:
+            p.h = np.minimum(p.h, self.depth_cap * grid_depth)
         factor = 1.0 + dt * (grad[:, 0, 0] + grad[:, 1, 1])
         if not (factor > 0.0).all():  # squeezed past zero in one step: stop, state kept
             worst = int(np.argmin(factor))
@@ -361,10 +390,12 @@ class MPMSolver:
             b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
-        local = transfer_bounds(b.arrays, mass, p.u, p.v, forces, p.area, p.volume)
+        speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
+        local = transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
         ext = fold_extractors(p2g_bounds(local, self.comm), self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
-        folds = p2g(b.arrays, mass, p.u, p.v, *forces, p.area, p.volume, self._box_args, ext)
+        folds = p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
+                    self._box_args, ext)
         totals = self.exchange.start(folds, box)
         self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
         # the nodes this rank's particles reach lie in its box's rows and columns
@@ -372,36 +403,14 @@ class MPMSolver:
                                   (box.j0 + box.h - 1) * box.nx1 + box.i0 + box.w)
         index, values = self.projector.project_nodes(sums.act, sums.g[:, 6])
         self._h = h = self.buffers.put("h", index, values)
-        self._write_field("h", index, values)
-        self._flow = self._owned_dofs(index)
+        self.writer.write("h", index, values)
+        self._flow = self.writer.owned_dofs(index)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
-            self._write_field(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
+            self.writer.write(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
 
     def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
         """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""
         return self.buffers.put(name, sums.act, values)
-
-    def _owned_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Sorted owned dofs of a projection window's global nodes (cached per window)."""
-        key = (nodes.size, int(nodes[0]), int(nodes[-1])) if nodes.size else (0, 0, 0)
-        if key not in self._windows:
-            local = self._local_of[nodes]
-            if len(self._windows) > 64:
-                self._windows.clear()
-            self._windows[key] = np.sort(local[(local >= 0) & (local < self.nodal._n_owned)])
-        return self._windows[key]
-
-    def _write_field(self, name: str, nodes: np.ndarray, values: np.ndarray) -> None:
-        """Set field ``name`` to ``values`` at the global ``nodes``, zero elsewhere.
-
-        Owned and ghost dofs; only the dofs written last time and now are touched.
-        """
-        local = self._local_of[nodes]
-        mine = local >= 0
-        array = self.fields[name].x.array
-        array[self._written.get(name, local[:0])] = 0.0
-        array[local[mine]] = values[mine]
-        self._written[name] = local[mine]
 
     def _global_geometry(self, slope: SlopeGeometry) -> SlopeGeometry:
         """Return the geometry on the global node array (collective)."""

@@ -124,6 +124,12 @@ class DomainSplitter:
         child.id = new_ids.astype(np.int64)
         self._shift(p, idx, key, -half)
         self._shift(child, slice(None), key, half)
+        # APIC: each half moves with the affine velocity at its centre (zero C: unchanged)
+        cu, cv = ("cxx", "cyx") if key == "lx" else ("cxy", "cyy")
+        p.u[idx] -= getattr(p, cu)[idx] * half
+        p.v[idx] -= getattr(p, cv)[idx] * half
+        child.u += getattr(child, cu) * half
+        child.v += getattr(child, cv) * half
         return Particles.concatenate([p, child])
 
     def _shift(self, p: Particles, idx, key: str, dist: np.ndarray) -> None:

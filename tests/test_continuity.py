@@ -28,12 +28,7 @@ SHORT = {
 PATHS = [CASES / f"{name}.yaml" for name in SHORT if name != "drop"] + hard_case_files()
 
 #: (case, method) -> what is known; xfail(strict): the mark fails as soon as it passes.
-KNOWN = {
-    ("cliff", "mpm"): "FLIP particle noise where particles pile up against the wall and the "
-                      "cliff foot grows the change exponentially (split decisions and counts "
-                      "stay equal): 1.2e-11 at 3 s, 5e-6 at 6 s; PIC gives 2.5e-13 "
-                      "(docs/limiter.md, Open)",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 PARAMS = [pytest.param(path, method, id=f"{path.stem}-{method}",
                        marks=[pytest.mark.xfail(strict=True, reason=KNOWN[(path.stem, method)])]
                        if (path.stem, method) in KNOWN else [])

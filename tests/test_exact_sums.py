@@ -67,12 +67,14 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
     box = np.array([0, 0, ny + 1, nx + 1])  # the whole grid: box position = node index
     mass = 10.0 ** RNG.uniform(-spread, 0, size=n_p)
     u, v = RNG.normal(size=n_p) * 30.0, RNG.normal(size=n_p)
-    bounds = [np.abs(mass * u).max(), np.abs(mass * v).max()]
+    affine = RNG.normal(size=(4, n_p))  # APIC's C_p; a node is within 2 cells of x̄_p
+    bounds = [np.abs(mass * (np.abs(u) + 2 * np.abs(affine[:2]).sum(0))).max(),
+              np.abs(mass * (np.abs(v) + 2 * np.abs(affine[2:]).sum(0))).max()]
     ext = extractors(bounds, n_p, MPI.COMM_SELF)
 
     def total(idx_groups):  # "ranks": sum each group's folds, then the groups
         folds = sum(p2g_momentum((i0[g], j0[g], wx[g], 0 * wx[g], wy[g], 0 * wy[g], nx, ny, 1.0,
-                                  1.0), mass[g], u[g], v[g], box, ext)
+                                  1.0), mass[g], u[g], v[g], affine[:, g], box, ext)
                     for g in idx_groups)
         return folds[..., 0] + folds[..., 1]
 
@@ -80,8 +82,13 @@ def test_particle_sums_do_not_depend_on_order_or_split(spread):
     for parts in (2, 3):
         order = RNG.permutation(n_p)
         assert np.array_equal(total(np.array_split(order, parts)), base)
+    # node offsets from the weighted centre x̄_p = Σ_a w_a x_a (expanded order: a fastest)
+    ax, ay = np.minimum(i0[:, None] + np.arange(3), nx), np.minimum(j0[:, None] + np.arange(3), ny)
+    rx = np.tile(ax - (wx * ax).sum(1, keepdims=True), 3)
+    ry = np.repeat(ay - (wy * ay).sum(1, keepdims=True), 3, axis=1)
     exact = np.zeros((n_nodes, 2))
     for c, vel in enumerate((u, v)):
-        np.add.at(exact[:, c], nodes.ravel(), (mass[:, None] * vel[:, None] * weights).ravel())
+        nodal_vel = vel[:, None] + affine[2 * c, :, None] * rx + affine[2 * c + 1, :, None] * ry
+        np.add.at(exact[:, c], nodes.ravel(), (mass[:, None] * nodal_vel * weights).ravel())
     scale = np.abs(exact).max()
     assert np.abs(base - exact).max() <= 1e-12 * scale

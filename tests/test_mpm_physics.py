@@ -82,3 +82,31 @@ def test_material_held_by_friction_keeps_its_depth(method):
           f"relative depth change of a held particle {held.changed:.3g}")
     assert held.held > 1000 and held.moving > 1000
     assert held.changed == 0.0
+
+
+@pytest.mark.parametrize(("cap", "bound"), [(3.0, 4.0), (None, None)], ids=["cap", "seed"])
+def test_particle_columns_piling_at_a_wall_stay_near_the_grid_depth(cap, bound):
+    """The cliff hard case to 3 s: the flow runs into the wall at x = 60 m and reflects.
+
+    Eq. 42 alone lets the piled particles' columns drift far above any depth the flow has on
+    the grid (about 50 times the largest grid depth here; 700 m particles over a 5 m bore),
+    and their pressure and wave speed follow. With the depth cap ``κ`` no particle is thicker
+    than ``κ`` times the grid depth where it is before its step; one step of eq. 42 (CFL
+    bounded) adds less than a factor 4/3: the bound is ``κ + 1``.
+    """
+    from mpi4py import MPI
+
+    from fem_runout.api import build_solver
+    from fem_runout.config import load_case
+    from tests.tg2_helpers import CASES
+
+    overrides = ["method=mpm", "time.end=3.0", f"numerics.depth_cap={cap or 'null'}"]
+    solver = build_solver(load_case(CASES / "hard" / "cliff.yaml", overrides), MPI.COMM_SELF)
+    t, ratio = 0.0, 0.0
+    while t < 3.0:
+        dt = min(0.9 * solver.stable_dt(), 3.0 - t)
+        solver.advance(dt)
+        t += dt
+        ratio = max(ratio, solver.particles.h.max() / solver.fields["h"].x.array.max())
+    print(f"depth cap {cap}: largest particle depth / largest grid depth {ratio:.3g}")
+    assert ratio <= bound if cap else ratio > 20.0

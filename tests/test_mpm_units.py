@@ -258,3 +258,73 @@ def test_strain_velocity_is_no_faster_than_the_friction_updated_one():
     eps = np.array([1e-14, -1e-14])  # a round-off change of |b| moves the result by round-off
     x1, _ = no_faster_than(np.full(2, 3.0), np.full(2, 4.0), 5.0 + eps, np.zeros(2))
     assert np.abs(x1 - 3.0).max() <= 1e-14
+
+
+def test_apic_round_trip_keeps_a_linear_velocity_field_exactly(grid):
+    """APIC (Jiang et al. 2015): G2P then P2G returns any affine nodal velocity exactly.
+
+    The particles take ``v_p = Σ v_i S_ip`` and ``C_p = Σ v_i ∇S_ip^T``; the grid gets
+    ``Σ m_p S_ip (v_p + C_p (x_i - x̄_p)) / M_i``. For ``v = A x + b`` every particle's term
+    is ``A x_i + b`` (the GIMP weights reproduce linear functions), so the nodal velocity
+    comes back at every node with mass; the PIC round trip (``C_p = 0``) smooths it.
+    """
+    from fem_runout.exact_sum import extractors
+    from mpm.gimp import gimp_basis
+    from mpm.kernels import g2p_flip, g2p_gradient, p2g_momentum
+
+    cell, xi, eta = _random_particles(grid, 300, seed=11)
+    rng = np.random.default_rng(12)
+    n = cell.size
+    lx, ly = rng.random(n) * grid.dx / 2, rng.random(n) * grid.dy / 2
+    b = gimp_basis(cell, xi, eta, lx, ly, grid.nx, grid.ny, grid.dx, grid.dy)
+    X = grid.xmin + np.tile(np.arange(grid.nx + 1), grid.ny + 1) * grid.dx
+    Y = grid.ymin + np.repeat(np.arange(grid.ny + 1), grid.nx + 1) * grid.dy
+    A, b0 = np.array([[0.3, -1.1], [0.7, 0.2]]), np.array([2.0, -1.5])
+    vx, vy = A[0, 0] * X + A[0, 1] * Y + b0[0], A[1, 0] * X + A[1, 1] * Y + b0[1]
+    zero = np.zeros_like(X)
+    u, v = g2p_flip(b.arrays, vx, vy, zero, zero, zero, np.zeros(n), np.zeros(n), 0.0)
+    c = g2p_gradient(b.arrays, vx, vy)
+    assert np.abs(c - A).max() < 1e-12
+    mass = rng.uniform(0.5, 2.0, n)
+    box = np.array([0, 0, grid.ny + 1, grid.nx + 1])
+    ext = extractors([1e3, 1e3], n, COMM)
+    for affine, exact in ((c.reshape(n, 4).T.copy(), True), (np.zeros((4, n)), False)):
+        mom = p2g_momentum(b.arrays, mass, u, v, affine, box, ext).sum(axis=2)
+        weight = p2g_momentum(b.arrays, mass, np.ones(n), np.zeros(n), np.zeros((4, n)), box,
+                              ext).sum(axis=2)[:, 0]
+        has = weight > 1e-3 * mass.max()
+        error = max(np.abs(mom[has, 0] / weight[has] - vx[has]).max(),
+                    np.abs(mom[has, 1] / weight[has] - vy[has]).max())
+        assert (error < 1e-11) if exact else (error > 1e-2)
+
+
+def test_apic_split_gives_each_half_the_affine_velocity_at_its_centre(grid):
+    one = np.ones(grid.disc.coords.shape[0])
+    p = seed_particles(grid, one, 0 * one, 0 * one, 2)
+    splitter = DomainSplitter(grid, 2, int(p.id.max()) + 1)
+    p.u[:], p.v[:] = 1.0, -2.0
+    p.cxx[:], p.cxy[:], p.cyx[:], p.cyy[:] = 0.5, -0.25, 0.125, 2.0
+    x0, y0 = p.positions(grid)
+    k = int(np.argmin((x0 - 106.0) ** 2 + (y0 - 0.5) ** 2))
+    p.lx[k] *= 2.2  # split once along x
+    p.ly[k] *= 2.2  # and each half once along y
+    momentum = (p.volume * p.u).sum(), (p.volume * p.v).sum()
+    q = splitter.split(p)
+    x, y = q.positions(grid)
+    kids = np.isin(q.id, [p.id[k]]) | (q.id >= splitter.next_id - splitter.count)
+    assert kids.sum() == 4
+    assert abs((q.volume * q.u).sum() - momentum[0]) < 1e-12 * abs(momentum[0])
+    assert abs((q.volume * q.v).sum() - momentum[1]) < 1e-12 * abs(momentum[1])
+    du, dv = q.u[kids] - 1.0, q.v[kids] + 2.0
+    dx, dy = x[kids] - x0[k], y[kids] - y0[k]
+    assert np.abs(du - (0.5 * dx - 0.25 * dy)).max() < 1e-12
+    assert np.abs(dv - (0.125 * dx + 2.0 * dy)).max() < 1e-12
+
+
+def test_legacy_checkpoint_rows_without_the_affine_velocity_unpack():
+    rng = np.random.default_rng(3)
+    p = Particles(*rng.random((11, 4)), cell=np.arange(4), id=np.arange(4) * 7)
+    rows = p.pack()
+    legacy = np.concatenate([rows[:, :11], rows[:, -2:]], axis=1)  # 13 columns (session 12)
+    q = Particles.unpack(legacy)
+    assert np.array_equal(q.pack(), rows) and not q.cxx.any()

@@ -234,6 +234,11 @@ class NumericsSpec(StrictSpec):
     active_set: Bool = True  # TG2: assemble on the cells near the flow only (same bits)
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
+    # DAMPM: grid-to-particle velocity transfer, FLIP/PIC blend (``flip``) or affine (APIC)
+    transfer: Literal["flip", "apic"] = "flip"
+    # DAMPM: a particle column is at most this many times the grid depth where it is; null: the
+    # seed's eq. 42 alone (docs/dampm.md, "Depth cap")
+    depth_cap: Real | None = Field(3.0, ge=1)
     # stop the run (last good state checkpointed) once a node is faster than this [m/s]:
     # free fall from 10 km gives 443 m/s, so only a numerical blow-up gets here
     max_speed: Real | None = Field(1000.0, gt=0)

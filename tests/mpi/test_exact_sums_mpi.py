@@ -76,7 +76,7 @@ def test_fold_exchange_sums_the_touched_nodes_with_the_bits_of_one_rank():
                   np.minimum(i0[k] + 2, nx).max()] if k.size else [-np.inf] * 4
         box = nodal.box(np.array(bounds, dtype=float))
         folds = p2g_momentum((i0[k], j0[k], wx[k], 0 * wx[k], wy[k], 0 * wy[k], nx, ny, 1.0,
-                              1.0), mass[k], u[k], v[k],
+                              1.0), mass[k], u[k], v[k], np.zeros((4, k.size)),
                              np.array([box.j0, box.i0, box.h, box.w]), ext)
         exchange = FoldExchange(comm)
         sums = exchange.start(folds, box)
