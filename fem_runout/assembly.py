@@ -174,6 +174,9 @@ class VectorAssembler:
         self._constants = cpp.constants
         self._const = np.zeros(max(sum(np.asarray(c.value).size for c in cpp.constants), 1))
         self.integrals: list[tuple[IntegralType, int, np.ndarray]] = []
+        #: per integral, the coefficients its kernel reads (FFCx's ``enabled_coefficients``):
+        #: the others are not packed (their slots are never read, so the bits are the same)
+        self._enabled: list[tuple[int, ...]] = []
         offsets = [ufcx.form_integral_offsets[i] for i in range(len(IntegralType) + 1)]
         needs_perm = False
         for kind in IntegralType:
@@ -187,6 +190,8 @@ class VectorAssembler:
                 addr = int(form.module.ffi.cast("uintptr_t", integral.tabulate_tensor_float64))
                 ents = np.asarray(cpp.domains(kind, k), dtype=np.int32)
                 self.integrals.append((kind, addr, ents))
+                self._enabled.append(tuple(c for c in range(len(coeffs))
+                                           if integral.enabled_coefficients[c]))
         if entities is not None:
             self.integrals = [(kind, addr, np.ascontiguousarray(e, dtype=np.int32))
                               for (kind, addr, _), e in zip(self.integrals, entities, strict=True)]
@@ -215,12 +220,12 @@ class VectorAssembler:
         cst = max(int(self._offsets[-1]), 1)
         geo = (self._tdofs, self._tbs, self._xdofs, self._x, self._const, self._perms)
         none = np.zeros(0, dtype=np.int32)
-        for kind, addr, ents in self.integrals:
+        for (kind, addr, ents), enabled in zip(self.integrals, self._enabled, strict=True):
             if kind == IntegralType.interior_facet:
                 pairs = ents.reshape(-1, 4)
                 W = self._buffer(pairs.shape[0], 2 * cst)
-                self._pack(W, pairs[:, 0], 0, 2)
-                self._pack(W, pairs[:, 2], 1, 2)
+                self._pack(W, pairs[:, 0], 0, 2, enabled)
+                self._pack(W, pairs[:, 2], 1, 2, enabled)
                 _interior(addr, b, pairs, W, *geo)
                 continue
             if kind == IntegralType.cell:
@@ -229,19 +234,20 @@ class VectorAssembler:
                 pairs = ents.reshape(-1, 2)
                 cells, facets = pairs[:, 0], pairs[:, 1]
             W = self._buffer(cells.shape[0], cst)
-            self._pack(W, cells, 0, 1)
+            self._pack(W, cells, 0, 1, enabled)
             _one_sided(addr, b, cells, facets, W, *geo)
 
-    def _pack(self, W: np.ndarray, cells: np.ndarray, side: int, sides: int) -> None:
-        """Pack every coefficient of ``cells`` into ``W`` (``pack.h``'s layout).
+    def _pack(self, W: np.ndarray, cells: np.ndarray, side: int, sides: int,
+              enabled: tuple[int, ...]) -> None:
+        """Pack the ``enabled`` coefficients of ``cells`` into ``W`` (``pack.h``'s layout).
 
         Coefficient ``k`` goes to column ``sides * offsets[k] + side * size_k``: one cell per
         entity (``sides = 1``), or interior facets (``sides = 2``: per coefficient, the '+'
         cell, ``side = 0``, then the '-' cell, ``side = 1``).
         """
         off = self._offsets
-        for k, (v, dm, bs) in enumerate(zip(self._values, self._dofmaps, self._bsizes,
-                                            strict=True)):
+        for k in enabled:
+            v, dm, bs = self._values[k], self._dofmaps[k], self._bsizes[k]
             _pack(W, cells, int(sides * off[k] + side * (off[k + 1] - off[k])), v, dm, int(bs))
 
     def _buffer(self, rows: int, cols: int) -> np.ndarray:
