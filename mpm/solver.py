@@ -13,7 +13,9 @@ previous step):
    eq. 37's ``(p_i + Δt f_i)/M_i`` is unbounded at nodes with little mass, and its gradient
    collapsed particle columns (``1 + tr Δε <= 0``) in viscous and wall-reflection runs;
 4. strain increment ``Δε_p = Δt sym(L_p)`` (eq. 40), depth
-   ``h_p /= 1 + tr Δε_p`` (eq. 42), stress ``σ_p = 2 μ_eff D_p`` (eqs. 3, 41; USL: updated last);
+   ``h_p = min(h_p, κ h̄_p) / (1 + tr Δε_p)`` (eq. 42, capped at κ times the grid depth
+   ``h̄_p``: :meth:`MPMSolver.update_depth_and_stress`), stress ``σ_p = 2 μ_eff D_p``
+   (eqs. 3, 41; USL: updated last);
    positions ``x_p += Δt v_p^{k+1}`` (eq. 39 with the updated velocity, cell-local);
 5. particles leaving through open sides are removed (their volume counted as outflow), the
    others are rebalanced over the ranks (strips of rows, :mod:`mpm.migrate`); P2G of the new
