@@ -168,7 +168,7 @@ class ActiveSet:
             for side in self.disc.sides:
                 pos = self.inverse[side.nodes]
                 ok = pos >= 0
-                out.append(Side(side.name, side.kind, side.normal, pos[ok], side.weight[ok]))
+                out.append(side.take(ok, pos[ok]))
             return out
         return self._cached("sides", make)
 
@@ -196,7 +196,7 @@ class ActiveSet:
         else:
             # the buffer is zero off the nodes (fresh at each rebuild, and every rank
             # agrees on the nodes), so the exchange adds exact zeros there
-            buf = vec.array.reshape(d.coords.shape[0], 4, bs)
+            buf = vec.array.reshape(d.coords.shape[0], d.n_slots, bs)
             cellsum.gather_on(src, flat, self.nodes, buf)
             vec.scatter_reverse(InsertMode.add)  # each slot has one non-zero: exact
             vec.scatter_forward()
@@ -208,7 +208,7 @@ class ActiveSet:
         def make():
             d = self.disc
             idx = self.owned
-            src = cellsum.sources(d.cell_nodes[idx], d.slot[idx], d.coords.shape[0])
-            vec = None if d.comm.size == 1 else la.vector(d.V.dofmap.index_map, 4 * bs)
+            src = cellsum.sources(d.cell_nodes[idx], d.slot[idx], d.coords.shape[0], d.n_slots)
+            vec = None if d.comm.size == 1 else la.vector(d.V.dofmap.index_map, d.n_slots * bs)
             return np.ascontiguousarray(src[self.nodes]), vec
         return self._cached(("sum", bs), make)

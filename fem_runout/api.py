@@ -33,6 +33,8 @@ class RunResult:
         x, y: Node coordinates [m].
         h, hu, hv, z: Final depth, momenta and elevation.
         peak_depth, peak_speed: Maximum over the run of depth and speed per node.
+        area: Nodal area ``∫ φ_i`` (the lumped Q1 mass): the weights of nodal integrals.
+        cells: Number of cells of the mesh (every rank).
         series: Time series (column name -> array), see ``series.csv``.
         wall_time: Seconds spent in the time loop.
         steps: Number of time steps.
@@ -54,6 +56,8 @@ class RunResult:
     z: np.ndarray | None = None
     peak_depth: np.ndarray | None = None
     peak_speed: np.ndarray | None = None
+    area: np.ndarray | None = None
+    cells: int = 0
     series: dict[str, np.ndarray] = field(default_factory=dict)
     wall_time: float = 0.0
     steps: int = 0
@@ -274,11 +278,13 @@ class _Outputs:
         from fem_runout.output import gather_nodal
 
         solver = runner.solver
-        final = gather_nodal(solver.V, {k: f.x.array for k, f in solver.fields.items()})
+        final = gather_nodal(solver.V, {**{k: f.x.array for k, f in solver.fields.items()},
+                                        "area": solver.lumped_mass})
         envelope = self.peaks.gathered()
         result = RunResult(series=self.recorder.series, wall_time=runner.wall_time,
                            steps=info.step, t=info.t, out_dir=self.out,
-                           at_rest=runner.at_rest, particles=solver.n_particles)
+                           at_rest=runner.at_rest, particles=solver.n_particles,
+                           cells=solver.mesh.topology.index_map(2).size_global)
         result.summary = {**self.hazard.summary, "t_end": info.t, "steps": info.step,
                           "at_rest": runner.at_rest, "wall_time": runner.wall_time,
                           "ranks": comm.size, "method": case.method,
@@ -286,7 +292,7 @@ class _Outputs:
         if self.out is not None and comm.rank == 0:
             (self.out / "summary.json").write_text(json.dumps(result.summary, indent=2) + "\n")
         if final is not None:
-            for key in ("x", "y", "h", "hu", "hv", "z"):
+            for key in ("x", "y", "h", "hu", "hv", "z", "area"):
                 setattr(result, key, final[key])
             result.peak_depth = envelope["peak_depth"]
             result.peak_speed = envelope["peak_speed"]

@@ -10,7 +10,10 @@ Here every contribution goes to its own *slot*: on a structured quadrilateral me
 is the lower-left, lower-right, upper-left or upper-right corner of at most one cell, so the
 slot ``s = 2 [y_node > y_centre] + [x_node > x_centre]`` is unique per node. Slots are filled
 by exactly one owned cell over all ranks, the cross-rank exchange adds zeros (exact), and the
-four slots are summed in a fixed order: the result depends on the values only.
+four slots are summed in a fixed order: the result depends on the values only. On an
+unstructured mesh the slot of a cell at a node is the rank of the cell's input index among the
+node's cells (:func:`fem_runout.quadmesh.cell_slots`), with as many slots as the largest
+number of cells around a node.
 """
 
 from __future__ import annotations
@@ -40,12 +43,13 @@ def cell_slots(xc: np.ndarray) -> np.ndarray:
     return slot
 
 
-def sources(cells: np.ndarray, slot: np.ndarray, n_nodes: int) -> np.ndarray:
+def sources(cells: np.ndarray, slot: np.ndarray, n_nodes: int, n_slots: int = 4) -> np.ndarray:
     """``src[i, s]`` = flat index ``4 K + a`` of the cell node filling slot ``s`` of node ``i``.
 
-    -1 where no cell of ``cells`` fills the slot.
+    -1 where no cell of ``cells`` fills the slot. ``n_slots`` is 4 on a structured mesh, the
+    largest number of cells around a node on an unstructured one (:mod:`fem_runout.quadmesh`).
     """
-    src = np.full((n_nodes, 4), -1, dtype=np.int64)
+    src = np.full((n_nodes, n_slots), -1, dtype=np.int64)
     src[cells.ravel(), slot.ravel()] = np.arange(cells.size, dtype=np.int64)
     return src
 
@@ -60,7 +64,7 @@ def gather_total(src, flat, out):
     for i in range(src.shape[0]):
         for c in range(flat.shape[1]):
             acc = 0.0
-            for s in range(4):
+            for s in range(src.shape[1]):
                 j = src[i, s]
                 acc = acc + (flat[j, c] if j >= 0 else 0.0)
             out[i, c] = acc
@@ -71,7 +75,7 @@ def gather_on(src, flat, nodes, buf):
     """``buf[nodes[k], s, c] = flat[src[k, s], c]`` (0 where ``src`` is -1): the slots."""
     for k in range(nodes.shape[0]):
         i = nodes[k]
-        for s in range(4):
+        for s in range(src.shape[1]):
             j = src[k, s]
             for c in range(flat.shape[1]):
                 buf[i, s, c] = flat[j, c] if j >= 0 else 0.0
@@ -79,8 +83,11 @@ def gather_on(src, flat, nodes, buf):
 
 @numba.njit(cache=True)
 def total_on(buf, nodes, out):
-    """``out[k, c] = ((b[0, c] + b[1, c]) + b[2, c]) + b[3, c]`` for ``b = buf[nodes[k]]``."""
+    """``out[k, c] = ((b[0, c] + b[1, c]) + b[2, c]) + ...`` for ``b = buf[nodes[k]]``."""
     for k in range(nodes.shape[0]):
         i = nodes[k]
         for c in range(buf.shape[2]):
-            out[k, c] = ((buf[i, 0, c] + buf[i, 1, c]) + buf[i, 2, c]) + buf[i, 3, c]
+            acc = buf[i, 0, c]
+            for s in range(1, buf.shape[1]):
+                acc = acc + buf[i, s, c]
+            out[k, c] = acc

@@ -19,19 +19,21 @@ from mpi4py import MPI
 from fem_runout import cellsum
 
 SIDES = ("left", "right", "bottom", "top")
-_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
+SIDE_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
 
 
 @dataclass
 class Side:
-    """One side of the rectangle.
+    """A part of the boundary with one kind: a side of the rectangle, or all open/wall facets.
 
     Attributes:
-        name: left, right, bottom or top.
+        name: left, right, bottom or top (rectangle); open or wall (unstructured mesh).
         kind: ``"open"`` or ``"wall"``.
-        normal: Outward unit normal.
+        normal: (n, 2) outward unit normal per node: the direction of ``∫ φ_i n ds``.
         nodes: Local node indices on the side.
-        weight: ``∫_side φ_i ds`` for those nodes.
+        weight: ``|∫_side φ_i n ds|`` for those nodes (``∫ φ_i ds`` on a straight side).
+        corner: (n,) bool, wall nodes where the wall turns by more than 45°: both momentum
+            components are zeroed there (None: no corner).
     """
 
     name: str
@@ -39,17 +41,31 @@ class Side:
     normal: np.ndarray
     nodes: np.ndarray
     weight: np.ndarray
+    corner: np.ndarray | None = None
+
+    def take(self, ok: np.ndarray, nodes: np.ndarray) -> Side:
+        """Return the side restricted to the rows ``ok``, with node indices ``nodes``."""
+        corner = None if self.corner is None else self.corner[ok]
+        return Side(self.name, self.kind, self.normal[ok], nodes, self.weight[ok], corner)
 
 
 def zero_wall_normal(sides, mx: np.ndarray, my: np.ndarray) -> None:
     """Zero the wall-normal component of a nodal vector (mx, my) on the wall sides, in place.
 
-    The walls of a rectangle are axis-aligned: an x-normal wall zeroes ``mx``, a y-normal wall
-    ``my`` (a corner node of two walls loses both). ``mx``, ``my`` may be column views.
+    ``m ← m - (m·n) n`` with the node's normal (on an axis-aligned wall that zeroes one
+    component exactly; a corner node of two walls loses both). ``mx``, ``my`` may be column
+    views.
     """
     for side in sides:
-        if side.kind == "wall":
-            (mx if side.normal[0] != 0.0 else my)[side.nodes] = 0.0
+        if side.kind != "wall":
+            continue
+        i, n = side.nodes, side.normal
+        mn = mx[i] * n[:, 0] + my[i] * n[:, 1]
+        mx[i] -= mn * n[:, 0]
+        my[i] -= mn * n[:, 1]
+        if side.corner is not None:
+            mx[i[side.corner]] = 0.0
+            my[i[side.corner]] = 0.0
 
 
 @dataclass
@@ -70,6 +86,14 @@ class Discretization:
         lumped_mass: Nodal areas ``∫ φ_i`` for local nodes (owned then ghosts).
         coords: (n_nodes_local, 2) node coordinates.
         sides: Boundary sides with their kind, nodes and weights.
+        slot: (n_cells_local, 4) slot of every cell node in the exact nodal sums.
+        n_slots: Slots per node: 4 on the rectangle, the most cells around a node otherwise.
+        structured: True for the rectangle's uniform grid (``extent``, ``cells`` and
+            ``spacing`` describe it); False for an unstructured mesh (``extent`` is the
+            bounding box, ``cells`` is ``(n_cells, 0)``).
+        min_cell_size: Shortest cell edge over the mesh [m].
+        edges: The unstructured mesh's cell–edge data (:class:`fem_runout.quadmesh.Edges`),
+            None on the rectangle.
     """
 
     comm: MPI.Comm
@@ -86,10 +110,16 @@ class Discretization:
     coords: np.ndarray
     sides: list[Side]
     slot: np.ndarray | None = None
+    n_slots: int = 4
+    structured: bool = True
+    min_cell_size: float = 0.0
+    edges: object | None = None
 
     @property
     def spacing(self) -> tuple[float, float]:
-        """Cell size (dx, dy)."""
+        """Cell size (dx, dy) of the structured grid."""
+        if not self.structured:
+            raise AttributeError("an unstructured mesh has no grid spacing (use min_cell_size)")
         xmin, xmax, ymin, ymax = self.extent
         return (xmax - xmin) / self.cells[0], (ymax - ymin) / self.cells[1]
 
@@ -108,14 +138,15 @@ class Discretization:
         nn = self.coords.shape[0]
         src = self.__dict__.get("_src")
         if src is None:
-            src = self.__dict__["_src"] = cellsum.sources(self.cell_nodes[:n], self.slot[:n], nn)
+            src = self.__dict__["_src"] = cellsum.sources(self.cell_nodes[:n], self.slot[:n], nn,
+                                                          self.n_slots)
         flat = np.ascontiguousarray(contrib.reshape(n * 4, bs))
         out = np.empty((nn, bs))
         if self.comm.size == 1:
             cellsum.gather_total(src, flat, out)
         else:
-            vec = self._vector(4 * bs)
-            buf = vec.array.reshape(nn, 4, bs)
+            vec = self._vector(self.n_slots * bs)
+            buf = vec.array.reshape(nn, self.n_slots, bs)
             every = self.__dict__.setdefault("_every_node", np.arange(nn))
             cellsum.gather_on(src, flat, every, buf)
             vec.scatter_reverse(la.InsertMode.add)  # each slot has one non-zero: exact
@@ -176,12 +207,12 @@ def build_discretization(
     for axis, (lo, n) in enumerate(((xmin, cells[0]), (ymin, cells[1]))):
         step = ((xmax - xmin) if axis == 0 else (ymax - ymin)) / n
         coords[:, axis] = lo + np.rint((coords[:, axis] - lo) / step) * step
-    C, phi_int, area = _cell_integrals(coords[cell_nodes])
+    C, phi_int, area = cell_integrals(coords[cell_nodes])
     disc = Discretization(
         comm=comm, mesh=msh, V=V, extent=tuple(map(float, extent)), cells=tuple(cells),
         n_owned_nodes=V.dofmap.index_map.size_local, n_owned_cells=cmap.size_local,
         cell_nodes=cell_nodes, C=C, cell_area=area, lumped_mass=np.empty(0), coords=coords,
-        sides=[],
+        sides=[], min_cell_size=float(min((xmax - xmin) / cells[0], (ymax - ymin) / cells[1])),
     )
     disc.slot = cellsum.cell_slots(coords[cell_nodes])
     disc.lumped_mass = disc.cell_sum(phi_int[: cmap.size_local])
@@ -189,7 +220,7 @@ def build_discretization(
     return disc
 
 
-def _cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``∫_K φ_i ∇φ_j``, ``∫_K φ_i`` and |K| for bilinear cells with node coordinates ``xc``.
 
     Args:
@@ -225,7 +256,7 @@ def _side(disc: Discretization, name: str, kind: str) -> Side:
     n_cells = disc.cells[1] if axis == 0 else disc.cells[0]
     h = (hi - lo) / n_cells
     weight = np.where((np.abs(along - lo) < tol) | (np.abs(along - hi) < tol), 0.5 * h, h)
-    return Side(name, kind, np.array(_NORMALS[name]), nodes, weight)
+    return Side(name, kind, np.tile(SIDE_NORMALS[name], (nodes.size, 1)), nodes, weight)
 
 
 class GhostReducer:

@@ -21,7 +21,7 @@ from fem_runout.physics.friction import FrictionLaw, friction_from_spec
 from fem_runout.physics.rheology import Bingham, rheology_from_spec
 from fem_runout.physics.slope import SlopeGeometry, slope_geometry
 
-__all__ = ["Problem", "build_problem", "initial_fields", "resolved_thin_depth"]
+__all__ = ["Problem", "build_problem", "discretize", "initial_fields", "resolved_thin_depth"]
 
 
 @dataclass(frozen=True)
@@ -53,10 +53,7 @@ class Problem:
 
 def build_problem(case: Case, comm: MPI.Comm) -> Problem:
     """Discretize ``case`` and set up its initial state and physics (collective)."""
-    extent, cells = case.domain.extent, case.domain.resolved_cells
-    owners = agree_on_errors(comm, lambda: _path_owners(case, comm.size))
-    disc = build_discretization(comm, extent, cells, dict(case.domain.sides),
-                                None if owners is None else cell_partitioner(owners, cells[0]))
+    disc = discretize(case, comm)
     init = agree_on_errors(comm, lambda: initial_fields(case, disc.coords))
     x, y = disc.coords[:, 0], disc.coords[:, 1]
     u_fn, v_fn = case.initial.velocity_fns()
@@ -71,6 +68,23 @@ def build_problem(case: Case, comm: MPI.Comm) -> Problem:
         rheology=rheology_from_spec(case.material.rheology, case.material.density),
         slope=slope, thin_depth=resolved_thin_depth(case, comm, init["h"]),
     )
+
+
+def discretize(case: Case, comm: MPI.Comm) -> Discretization:
+    """Mesh the case's domain (collective): the rectangle's grid, or a gmsh quad mesh.
+
+    The rectangle is partitioned along the flow path (:mod:`fem_runout.partition`); a gmsh
+    mesh (``domain.outline`` or ``domain.mesh``) is built on rank 0 and distributed by
+    DOLFINx (:func:`fem_runout.quadmesh.gmsh_discretization`).
+    """
+    if getattr(case.domain, "kind", "rectangle") != "rectangle":
+        from fem_runout.quadmesh import gmsh_discretization
+
+        return gmsh_discretization(case, comm)
+    extent, cells = case.domain.extent, case.domain.resolved_cells
+    owners = agree_on_errors(comm, lambda: _path_owners(case, comm.size))
+    return build_discretization(comm, extent, cells, dict(case.domain.sides),
+                                None if owners is None else cell_partitioner(owners, cells[0]))
 
 
 def _path_owners(case: Case, nparts: int) -> np.ndarray | None:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization, Side
+from fem_runout.mesh import SIDE_NORMALS, Discretization, Side
 from mpm.exchange import Box
 from mpm.gimp import structured_nodes
 
@@ -104,7 +104,7 @@ class NodalGrid:
         self.node_index = structured_nodes(disc.coords, disc.extent, disc.spacing, disc.cells)
         self._owned = self.node_index[: disc.n_owned_nodes]
         self._n_owned = disc.n_owned_nodes
-        self.sides = [self._side(s.name, s.kind, s.normal) for s in disc.sides]
+        self.sides = [self._side(s.name, s.kind, SIDE_NORMALS[s.name]) for s in disc.sides]
 
     def _side(self, name: str, kind: str, normal: np.ndarray) -> Side:
         """Return a side with structured node indices and its ``∫ φ_i ds`` weights."""

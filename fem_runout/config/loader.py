@@ -283,7 +283,8 @@ def load_case(
     Returns:
         The validated case; ``case.source_dir`` is the case file folder (``None`` for a
         mapping). With ``terrain.dem`` the domain extent, cell size and CRS are filled from
-        the DEM (see :func:`fem_runout.terrain.resolve.resolve_terrain`).
+        the DEM (see :func:`fem_runout.terrain.resolve.resolve_terrain`); an outline or a
+        mesh file is read and checked (:func:`fem_runout.meshing.resolve.resolve_domain`).
 
     Raises:
         CaseError: For a missing or unreadable file, invalid YAML, a bad override, an unknown
@@ -304,7 +305,8 @@ def load_case(
         raise CaseError(_message(exc, label, items)) from None
     if source_dir is not None:
         case = case.with_source_dir(source_dir)
-    if case.terrain.dem is not None or case.initial.release is not None:
+    if (case.terrain.dem is not None or case.initial.release is not None
+            or case.domain.kind != "rectangle"):
         from fem_runout.terrain.resolve import resolve_terrain
 
         try:

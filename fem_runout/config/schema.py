@@ -311,7 +311,7 @@ class Case(StrictSpec):
     @model_validator(mode="after")
     def _domain_needs_dem(self) -> Case:
         d = self.domain
-        if self.terrain.dem is None:
+        if self.terrain.dem is None and d.kind == "rectangle":
             if d.extent is None:
                 raise SpecError("required key is missing (or give terrain.dem)", "domain.extent")
             if d.window is not None:

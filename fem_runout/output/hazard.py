@@ -19,6 +19,7 @@ import numpy as np
 from fem_runout.callbacks import flow_index
 from fem_runout.output.diagnostics import nodal_speed
 from fem_runout.output.gather import gather_nodal, global_sum
+from fem_runout.output.sampling import bed_cosine_nodes, sample_q1
 from fem_runout.terrain.dem import sample_grid
 
 if TYPE_CHECKING:
@@ -72,6 +73,19 @@ def target_for(case: Case) -> GridTarget:
     nx, ny = case.domain.resolved_cells
     dx, dy = (xmax - xmin) / nx, (ymax - ymin) / ny
     return GridTarget((ny + 1, nx + 1), from_origin(xmin - dx / 2, ymax + dy / 2, dx, dy), None)
+
+
+def mesh_target(case: Case, disc) -> GridTarget:
+    """Return the DEM's grid, or (no DEM) one over the mesh's box at its finest cell size."""
+    if case.terrain.dem is not None:
+        return target_for(case)
+    from rasterio.transform import from_origin
+
+    xmin, xmax, ymin, ymax = disc.extent
+    size = float(disc.min_cell_size)
+    cols = max(1, int(np.ceil((xmax - xmin) / size)))
+    rows = max(1, int(np.ceil((ymax - ymin) / size)))
+    return GridTarget((rows, cols), from_origin(xmin, ymin + rows * size, size, size), None)
 
 
 def to_target(grid: np.ndarray, extent: tuple[float, float, float, float],
@@ -141,7 +155,7 @@ def map_summary(g: dict[str, np.ndarray], extent: tuple[float, float, float, flo
     node whose peak depth exceeded ``threshold``; the travel angle is ``atan(H / L)`` with
     ``H`` the drop between those two nodes.
     """
-    area = _node_areas(g["z"].shape, extent)
+    area = g["area"] if "area" in g else _node_areas(g["z"].shape, extent)
     hit = g["peak_depth"] > threshold
     src = g["h0"] > threshold
     out = {"affected_area": float(area[hit].sum()), "peak_depth_max": float(g["peak_depth"].max()),
@@ -242,11 +256,47 @@ class HazardMaps:
         self.summary.update(deposit_volume=deposit, outflow_volume=outflow,
                             mass_balance_error=(deposit + outflow - released) / released
                             if released else deposit + outflow)
-        nodes = gather_nodal(solver.V, {**self._track, "h": h})
-        extra = None
-        if nodes is not None:
-            extra = self._write(nodes, info)
+        disc = getattr(solver, "disc", None)
+        if disc is not None and not disc.structured:
+            extra = self._finish_on_mesh(solver, disc, h)
+        else:
+            nodes = gather_nodal(solver.V, {**self._track, "h": h})
+            extra = None
+            if nodes is not None:
+                extra = self._write(nodes, info)
         self.summary.update(solver.comm.bcast(extra, root=0))
+
+    def _finish_on_mesh(self, solver: Solver, disc, h: np.ndarray) -> dict[str, Any] | None:
+        """Summary and rasters on an unstructured mesh (collective; the summary on rank 0).
+
+        The summary uses the nodes with their lumped areas; the rasters are the Q1 fields
+        sampled at the target's pixel centres (:mod:`.sampling`), nodata outside the mesh.
+        """
+        n = h.size
+        cos = bed_cosine_nodes(disc, solver.fields["z"].x.array)
+        track = {**self._track, "h": h, "area": disc.lumped_mass[:n], "cos": cos[:n]}
+        nodes = gather_nodal(solver.V, track)
+        summary = None
+        if nodes is not None:
+            summary = map_summary(nodes, disc.extent, self.threshold)
+            summary["peak_depth_normal_max"] = float(np.max(nodes["peak_depth"] * nodes["cos"]))
+        if self.out_dir is None:
+            return summary
+        target = mesh_target(self.case, disc)
+        xs, ys = target.centres()
+        local = {"cos": cos}
+        for k in ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h"):
+            local[k] = np.zeros(disc.coords.shape[0])
+            local[k][:n] = track[k]
+            disc.update_ghosts(local[k])
+        grids = sample_q1(disc, local, xs, ys[::-1])
+        if grids is not None:
+            g = {k: v[::-1] for k, v in grids.items()}  # rows from the top, as the raster
+            g["peak_depth_normal"] = g["peak_depth"] * g["cos"]
+            g["deposit_depth"] = g["h"]
+            rasters = {k: np.where(np.isfinite(g[k]), g[k], NODATA) for k in MAP_NAMES}
+            self.written += write_rasters(rasters, target, self.out_dir, self.case.output.ascii)
+        return summary
 
     def _write(self, nodes: dict[str, np.ndarray], info: StepInfo) -> dict[str, float]:
         """Rank 0: grids, summary, rasters and pictures."""

@@ -147,20 +147,33 @@ def _check_files(case: Case) -> None:
         raise CaseError(f"{key}: file '{case.resolve_input(text)}' does not exist{hint}")
 
 
+def _resolve_domain(case: Case) -> Case:
+    """Read and check an outline or a mesh file, fill the extent (meshing.resolve)."""
+    if case.domain.kind == "rectangle":
+        return case
+    from fem_runout.meshing.resolve import resolve_domain
+
+    return resolve_domain(case)
+
+
 def resolve_terrain(case: Case) -> Case:
     """Fill and check the real-terrain parts of a case (idempotent; reads the input files).
 
     Raises:
         CaseError: Missing or unreadable files, nodata in the domain, CRS mismatch, a window
-            outside the DEM.
+            outside the DEM; for an outline or a mesh file, what
+            :func:`fem_runout.meshing.resolve.resolve_domain` refuses.
     """
     _check_files(case)
     releases = _release_crs(case)
     if case.terrain.dem is None:
-        return case
+        return _resolve_domain(case)
     t = case.terrain
     raster = read_raster(case.resolve_input(t.dem), "terrain.dem", t.fill_nodata)
     crs = _settle_crs(case, raster, releases)
+    if case.domain.kind != "rectangle":
+        terrain = t.model_copy(update={"crs": crs})
+        return _resolve_domain(case.model_copy(update={"terrain": terrain}))
     extent, size = _grid(case, raster)
     update = {"extent": extent, "window": None}
     if size is not None:

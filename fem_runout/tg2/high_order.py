@@ -23,6 +23,7 @@ from dolfinx import fem, la
 
 from fem_runout.mesh import Discretization, facet_measures
 from fem_runout.tg2.active import ActiveForms
+from fem_runout.tg2.edges import corrector_cells, edge_dzdn
 from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.low_order import reconstructed_surface
 
@@ -57,32 +58,44 @@ def _sum_blocks(b0, b1, blocks, out):
 
 
 @numba.njit(cache=True)
-def _cell_states(cells, h, qx, qy, cell_eta, b, dof0, dofs0, area, kappa, Qk, uk, etak):
+def _mean(values, w, k):
+    """``Σ_a w[k, a] values[a]``, or their plain mean ``0.25 Σ_a values[a]`` (``w`` empty).
+
+    The weighted mean is written ``v_0 + Σ_a w_a (v_a - v_0)``: exact for a constant.
+    """
+    if w.shape[0] == 0:
+        return 0.25 * ((((0.0 + values[0]) + values[1]) + values[2]) + values[3])
+    acc = 0.0
+    for a in range(1, 4):
+        acc += w[k, a] * (values[a] - values[0])
+    return values[0] + acc
+
+
+@numba.njit(cache=True)
+def _cell_states(cells, h, qx, qy, cell_eta, b, dof0, dofs0, area, w, kappa, Qk, uk, etak):
     """DG0 states at the half step from the predictor increments ``b`` (eq. 10, first line).
 
     ``Q_K = mean(Q) + b_K / |K|``, ``η_K = mean(η̃) + b_K[h] / |K|`` and the desingularised
     velocity of ``Q_K`` (:func:`.low_order.velocity_factor`, the same operations), in one
-    pass. On a parallelogram the mean of the four nodal values is the exact cell average of
-    the Q1 interpolant, the DG0 projection the predictor starts from.
+    pass. The mean is the DG0 projection of the Q1 interpolant the predictor starts from:
+    ``Σ_a (∫_K φ_a / |K|) Q_a`` (weights ``w``), on a parallelogram the plain mean of the four
+    nodal values (``w`` empty).
     """
+    vals = np.empty((4, 4))
     for k in range(cells.shape[0]):
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        se = 0.0
         for a in range(4):
             i = cells[k, a]
-            s0 += h[i]
-            s1 += qx[i]
-            s2 += qy[i]
-            se += cell_eta[k, a]
+            vals[0, a] = h[i]
+            vals[1, a] = qx[i]
+            vals[2, a] = qy[i]
+            vals[3, a] = cell_eta[k, a]
         d = dof0[k]
         dh = b[3 * d] / area[k]
-        v0 = 0.25 * s0 + dh
-        v1 = 0.25 * s1 + b[3 * d + 1] / area[k]
-        v2 = 0.25 * s2 + b[3 * d + 2] / area[k]
+        v0 = _mean(vals[0], w, k) + dh
+        v1 = _mean(vals[1], w, k) + b[3 * d + 1] / area[k]
+        v2 = _mean(vals[2], w, k) + b[3 * d + 2] / area[k]
         Qk[3 * d], Qk[3 * d + 1], Qk[3 * d + 2] = v0, v1, v2
-        etak[dofs0[k]] = 0.25 * se + dh
+        etak[dofs0[k]] = _mean(vals[3], w, k) + dh
         hp = max(v0, 0.0)
         hk = max(v0, kappa)
         f = 2.0 * hp / (hp * hp + hk * hk)
@@ -120,10 +133,15 @@ class HighOrder:
         self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
         g = self.gk if slope else fem.Constant(msh, float(gravity))
         self.pred_form = predictor_form(state, velocity, self.eta_t, W0, self.dt, g)
-        self.corr_form = corrector_form(
-            self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, kappa), z,
-            facet_measures(disc), disc.spacing,
-        )
+        self.g_const = -1.0 if slope else float(gravity)
+        if disc.edges is None:  # the rectangle: UFL facet forms (vertical, horizontal)
+            self.corr_form = corrector_form(
+                self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, kappa), z,
+                facet_measures(disc), disc.spacing,
+            )
+        else:  # unstructured: cell by cell (.edges)
+            self.corr_form = []
+        self._dzdn: np.ndarray | None = None  # ∇Z·n at the edges, once Z is set
         self.b_pred = la.vector(W0.dofmap.index_map, 3)
         self.b_corr = [la.vector(Wd.dofmap.index_map, 3) for _ in self.corr_form]
         nc = disc.cell_nodes.shape[0]
@@ -163,8 +181,10 @@ class HighOrder:
         _zero_blocks(self.b_pred.array, on["dof0"], 3)
         pred.assemble(self.b_pred.array)
         _cell_states(cells, h, hu, hv, cell_eta, self.b_pred.array, on["dof0"], on["dofs0"],
-                     on["area"], self.kappa, self.Qk.x.array, self.uk.x.array,
+                     on["area"], on["weight"], self.kappa, self.Qk.x.array, self.uk.x.array,
                      self.etak.x.array)
+        if self.disc.edges is not None:
+            return self._cell_by_cell(active, dt, on["out"])
         for vec, form in zip(self.b_corr, corr, strict=True):
             _zero_blocks(vec.array, on["dofd"], 3)
             form.assemble(vec.array)
@@ -172,6 +192,17 @@ class HighOrder:
         # cell + vertical facets, then horizontal facets
         out = on["out"]
         _sum_blocks(self.b_corr[0].array, self.b_corr[1].array, on["dofd_owned"], out)
+        return out
+
+    def _cell_by_cell(self, active: ActiveForms, dt: float, out: np.ndarray) -> np.ndarray:
+        """Return the corrector of an unstructured mesh (:func:`.edges.corrector_cells`)."""
+        e, dofs, d = self.disc.edges, self._dofs, self.disc
+        if self._dzdn is None:
+            self._dzdn = edge_dzdn(self.z.x.array, d.coords, d.cell_nodes, e.normal)
+        corrector_cells(active.owned, dofs["dof0"], dofs["dofs0"], self.Qk.x.array,
+                        self.uk.x.array, self.etak.x.array, self.gk.x.array, self.g_const,
+                        self.kappa, dt, e.neighbour, e.kind, e.normal, e.length, e.depth,
+                        e.corner_edges, e.grad_centre, self._dzdn, out)
         return out
 
     def _arrays(self, active: ActiveForms) -> dict[str, np.ndarray]:
@@ -186,6 +217,7 @@ class HighOrder:
             "dofd": dofs["dofd"][w], "dofsd": dofs["dofsd"][w],
             "dofd_owned": dofs["dofd"][active.owned],
             "area": d.cell_area[w],
+            "weight": np.empty((0, 4)) if d.edges is None else d.edges.mean_weight[w],
             "cell_eta": np.empty((w.size, 4)),
             "out": np.empty((active.owned.size, 4, 3)),
         }

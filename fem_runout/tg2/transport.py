@@ -123,7 +123,7 @@ class Transport:
         for side in a.sides():
             if side.kind == "open":
                 i = nodes[side.nodes]
-                un = self.ux.x.array[i] * side.normal[0] + self.uy.x.array[i] * side.normal[1]
+                un = self.ux.x.array[i] * side.normal[:, 0] + self.uy.x.array[i] * side.normal[:, 1]
                 cap[side.nodes] += side.weight * np.maximum(un, 0.0)
         own = slice(0, a.n_owned_nodes)
         c, m = cap[own], self._arrays()["mass"][own]
@@ -146,7 +146,7 @@ class Transport:
         s = self._slope[own] * wet
         local = float(s.max()) if s.size else 0.0
         top = self.disc.comm.allreduce(local, op=MPI.MAX)
-        return acceleration_limit(min(self.disc.spacing), self.g, top)
+        return acceleration_limit(self.disc.min_cell_size, self.g, top)
 
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L and capacities of the state, on the active set."""
@@ -235,7 +235,7 @@ class Transport:
             if side.kind != "open":
                 continue
             i = side.nodes
-            un = np.maximum(u[0, i] * side.normal[0] + u[1, i] * side.normal[1], 0.0)
+            un = np.maximum(u[0, i] * side.normal[:, 0] + u[1, i] * side.normal[:, 1], 0.0)
             w = side.weight
             flux[i, 0] -= w * q[i, 0] * un
             flux[i, 1] -= w * q[i, 1] * un
@@ -277,6 +277,7 @@ class Transport:
             if side.kind == "open":
                 own = side.nodes < owned
                 i = side.nodes[own]
-                un = np.maximum(u[0, i] * side.normal[0] + u[1, i] * side.normal[1], 0.0)
+                n = side.normal[own]
+                un = np.maximum(u[0, i] * n[:, 0] + u[1, i] * n[:, 1], 0.0)
                 out += float(np.sum(side.weight[own] * q0[i, 0] * un))
         self.outflow_volume += self._dt * comm.allreduce(out)

@@ -1,0 +1,204 @@
+"""TG2-PC on gmsh meshes against the rectangle's grid (issue 17).
+
+Usage::
+
+    python -m fem_runout.bench meshes [--only thacker hemisphere avakot] [--out docs/meshes.md]
+    mpiexec -n 2 python -m fem_runout.bench meshes ...     # the same numbers on 2 ranks
+
+- Thacker's planar bowl after one period on gmsh meshes of the square (``domain.outline``,
+  cell size 4/n) and on the n × n grid: L1 of h on the disc 0.2 m inside the wet/dry line
+  (the measure of docs/benchmarks.md, with the nodes' lumped areas), observed orders.
+- The hemisphere collapse (seed §4.1.1) on gmsh meshes of the disc r < 25 m and on the grid:
+  mean front radius over 16 rays and its spread (max − min)/mean, from the Q1 depth sampled
+  along each ray (threshold 1e-3 m).
+- avaKot on the graded corridor mesh (cases/avakot_corridor.yaml) against the grid at 10 m
+  and 5 m: run-out, affected area, cells, steps and wall time.
+
+The tables go between the ``<!-- meshes-bench -->`` markers of ``--out``; the raw numbers
+next to it as ``meshes_bench.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import platform
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["HELP", "add_arguments", "main"]
+
+HELP = "TG2-PC on gmsh meshes vs the grid: Thacker ladder, hemisphere isotropy, avaKot corridor"
+ROOT = Path(__file__).resolve().parents[2]
+BEGIN, END = "<!-- meshes-bench -->", "<!-- /meshes-bench -->"
+SQUARE = [[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the command's options."""
+    parser.add_argument("--only", nargs="+", default=["thacker", "hemisphere", "avakot"])
+    parser.add_argument("--thacker", type=int, nargs="+", default=[25, 50, 100, 200])
+    parser.add_argument("--hemisphere", type=float, nargs="+", default=[0.5, 0.25])
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "meshes.md")
+
+
+def _outline(points: list[list[float]], size: float) -> list[str]:
+    return ["domain.extent=null", "domain.cells=null", f"domain.outline={points}",
+            f"domain.cell_size={size}", f"domain.min_size={size / 2}"]
+
+
+def thacker_level(n: int, gmsh: bool, comm) -> dict:
+    """One level of Thacker's bowl (one period): error, cells, steps, wall."""
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+    from fem_runout.references import thacker as ref
+
+    over = _outline(SQUARE, ref.L / n) if gmsh else []
+    case = load_case(ref.case_dict(n), [*over, "method=tg2"])
+    r = run(case, write=False, comm=comm)
+    err = None
+    if r.x is not None:
+        wt = ref.omega(case.gravity) * r.t
+        rho = np.hypot(r.x - ref.L / 2 - ref.ETA * math.cos(wt),
+                       r.y - ref.L / 2 - ref.ETA * math.sin(wt))
+        inside = rho <= 0.8 * ref.A
+        err = float(np.sum(r.area[inside] * np.abs(r.h - ref.depth(r.x, r.y, r.t))[inside]))
+    return {"n": n, "mesh": "gmsh" if gmsh else "grid", "cells": r.cells, "steps": r.steps,
+            "wall": r.wall_time, "error": comm.bcast(err, root=0)}
+
+
+def hemisphere_level(size: float, gmsh: bool, comm) -> dict:
+    """Run the hemisphere to 1.2 s: mean front radius over 16 rays and its relative spread."""
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+    from fem_runout.output.sampling import sample_points
+
+    theta = np.linspace(0.0, 2 * np.pi, 129)[:-1]
+    disc_outline = [[float(round(25 + 25 * math.cos(t), 6)), float(round(25 + 25 * math.sin(t),
+                                                                           6))] for t in theta]
+    n = round(50 / size)
+    over = _outline(disc_outline, size) if gmsh else [f"domain.cells=[{n},{n}]"]
+    keep = _Keep()
+    r = run(load_case(ROOT / "cases" / "hemisphere.yaml", [*over, "method=tg2"]), write=False,
+            comm=comm, callbacks=[keep])
+    angles = np.linspace(0.0, 2 * np.pi, 17)[:-1]
+    step, radius = 0.005, np.arange(0.0, 20.0, 0.005)
+    pts = np.concatenate([np.column_stack([25 + radius * math.cos(a), 25 + radius * math.sin(a)])
+                          for a in angles])
+    h = sample_points(keep.solver.disc, {"h": keep.solver.fields["h"].x.array}, pts)
+    out = None
+    if h is not None:
+        radii = []
+        for depth in np.nan_to_num(h["h"]).reshape(angles.size, radius.size):
+            k = int(np.flatnonzero(depth > 1e-3)[-1])
+            radii.append(radius[k] + step * (depth[k] - 1e-3) / (depth[k] - depth[k + 1]))
+        radii = np.array(radii)
+        out = {"size": size, "mesh": "gmsh" if gmsh else "grid", "cells": r.cells,
+               "steps": r.steps, "wall": r.wall_time, "mean_radius": float(radii.mean()),
+               "spread": float((radii.max() - radii.min()) / radii.mean())}
+    return comm.bcast(out, root=0)
+
+
+def avakot_level(label: str, overrides: list[str], case: Path, comm) -> dict:
+    """One avaKot run: run-out, area, cells, steps, wall."""
+    from fem_runout.api import run
+    from fem_runout.config import load_case
+
+    r = run(load_case(case, [*overrides, "method=tg2"]), write=False, comm=comm)
+    s = r.summary
+    return {"label": label, "cells": r.cells, "steps": r.steps, "wall": r.wall_time,
+            "runout_length": s["runout_length"], "affected_area": s["affected_area"],
+            "peak_speed_max": s["peak_speed_max"], "deposit_volume": s["deposit_volume"]}
+
+
+class _Keep:
+    solver = None
+
+    def start(self, solver, info):
+        self.solver = solver
+
+    def step(self, solver, info):
+        pass
+
+    def output(self, solver, info):
+        pass
+
+    def finish(self, solver, info):
+        self.solver = solver
+
+
+def _orders(rows: list[dict]) -> list[float | None]:
+    out: list[float | None] = [None]
+    for a, b in zip(rows, rows[1:], strict=False):
+        out.append(math.log(a["error"] / b["error"]) / math.log(math.sqrt(b["cells"] /
+                                                                           a["cells"])))
+    return out
+
+
+def _tables(res: dict, ranks: int) -> str:
+    lines = [f"Measured {datetime.date.today()} on {platform.node()} ({platform.machine()}), "
+             f"{ranks} rank(s), `python -m fem_runout.bench meshes`.", ""]
+    if "thacker" in res:
+        lines += ["Thacker's bowl, one period: L1 of h on the disc 0.2 m inside the wet/dry "
+                  "line [m³]", "", "| n | mesh | cells | steps | wall [s] | L1 error | order |",
+                  "|---|---|---|---|---|---|---|"]
+        for kind in ("grid", "gmsh"):
+            rows = [r for r in res["thacker"] if r["mesh"] == kind]
+            for r, o in zip(rows, _orders(rows), strict=True):
+                lines.append(f"| {r['n']} | {kind} | {r['cells']} | {r['steps']} | "
+                             f"{r['wall']:.1f} | {r['error']:.3e} | "
+                             f"{'' if o is None else f'{o:.2f}'} |")
+        lines.append("")
+    if "hemisphere" in res:
+        lines += ["Hemisphere at 1.2 s: front radius over 16 rays (h > 1e-3 m)", "",
+                  "| cell size [m] | mesh | cells | steps | wall [s] | mean radius [m] | "
+                  "spread (max−min)/mean |", "|---|---|---|---|---|---|---|"]
+        for r in res["hemisphere"]:
+            lines.append(f"| {r['size']} | {r['mesh']} | {r['cells']} | {r['steps']} | "
+                         f"{r['wall']:.1f} | {r['mean_radius']:.3f} | {100 * r['spread']:.1f} % |")
+        lines.append("")
+    if "avakot" in res:
+        lines += ["avaKot (TG2-PC, defaults)", "",
+                  "| mesh | cells | steps | wall [s] | run-out [m] | affected area [ha] | "
+                  "peak speed [m/s] |", "|---|---|---|---|---|---|---|"]
+        for r in res["avakot"]:
+            lines.append(f"| {r['label']} | {r['cells']} | {r['steps']} | {r['wall']:.1f} | "
+                         f"{r['runout_length']:.0f} | {r['affected_area'] / 1e4:.1f} | "
+                         f"{r['peak_speed_max']:.1f} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the ladders and write the tables (collective under mpiexec)."""
+    import dolfinx_solver  # noqa: F401  (mpi4py before dolfinx)
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    res: dict[str, list[dict]] = {}
+    if "thacker" in args.only:
+        res["thacker"] = [thacker_level(n, g, comm) for g in (False, True) for n in args.thacker]
+    if "hemisphere" in args.only:
+        res["hemisphere"] = [hemisphere_level(s, g, comm) for s in args.hemisphere
+                             for g in (False, True)]
+    if "avakot" in args.only:
+        grid = ROOT / "cases" / "avakot.yaml"
+        res["avakot"] = [avakot_level("grid 10 m", [], grid, comm),
+                         avakot_level("grid 5 m", ["domain.cell_size=5"], grid, comm),
+                         avakot_level("gmsh corridor 5–10 m", [],
+                                      ROOT / "cases" / "avakot_corridor.yaml", comm)]
+    if comm.rank == 0:
+        text = _tables(res, comm.size)
+        print(text)
+        args.out.with_name("meshes_bench.json").write_text(json.dumps(res, indent=1) + "\n")
+        doc = args.out.read_text() if args.out.exists() else ""
+        block = f"{BEGIN}\n{text}\n{END}"
+        if BEGIN in doc:
+            doc = doc[: doc.index(BEGIN)] + block + doc[doc.index(END) + len(END):]
+        else:
+            doc += "\n" + block + "\n"
+        args.out.write_text(doc)
+    return 0
