@@ -45,6 +45,7 @@ lint: setup
 
 # the suite runs every benchmark with every implemented method on 1 and 2 ranks (< 30 min);
 # footprint: avaKot on its DEM and on a 4x larger padded one, both methods (about 6 min);
+# meshes: TG2-PC on gmsh meshes against the grid, Thacker, hemisphere, avaKot (docs/meshes.md);
 # the TG2-only fine-grid report is `$(PY) -m fem_runout.bench tg2-report` (about 12 min)
 bench: setup
 	$(PY) -m fem_runout.bench suite --ranks 1 2 3 --out docs/benchmarks.md --figures docs/figures
@@ -56,7 +57,10 @@ bench: setup
 		--out docs/step_cost_dampm.md
 	@if [ -f "$${FEM_RUNOUT_DATA:-../shared/data}/avaKot/avaKot.asc" ]; then \
 		$(PY) -m fem_runout.bench footprint --out docs/performance.md; \
-	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; fi
+		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --out docs/meshes.md; \
+	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; \
+		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --only thacker hemisphere \
+			--out docs/meshes.md; fi
 
 # peers side by side (optional, not in `make test`): GeoClaw (clawpack built from its sdist; needs
 # gfortran from the system's package manager) and AvaFrame com1DFA in their own virtualenvs under

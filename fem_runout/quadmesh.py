@@ -46,8 +46,9 @@ class Edges:
         depth: (n_cells, 4) ``2 (x_e - x_K)·n``: the distance to the mirrored cell centre.
         corner_edges: (n_cells, 4, 2) the two edges at each corner, in a fixed geometric order
             (edge midpoints sorted by x, then y): the order of the corrector's sums.
-        grad_centre: (n_cells, 4, 2) ``∇φ_a |det J|`` at the reference centre (the one-point
-            rule of the corrector's cell term).
+        grad_centre: (n_cells, 4, 2) ``∫_K ∇φ_a = Σ_{e ∋ a} |e|/2 n_e`` (the same as the UFL
+            corrector's one-point rule ``∇φ_a |det J|`` at the centre, exact on any
+            quadrilateral: the integrand is bilinear in the reference coordinates).
         mean_weight: (n_cells, 4) ``∫_K φ_a / |K|``: the DG0 projection of a Q1 field.
     """
 
@@ -247,24 +248,12 @@ def _edges(msh: mesh.Mesh, coords: np.ndarray, cell_nodes: np.ndarray,
         swap = (m1[:, 0] < m0[:, 0]) | ((m1[:, 0] == m0[:, 0]) & (m1[:, 1] < m0[:, 1]))
         corner_edges[:, a, 0] = np.where(swap, pair[1], pair[0])
         corner_edges[:, a, 1] = np.where(swap, pair[0], pair[1])
-    return Edges(neighbour, kind, normal, length, depth, corner_edges, _centre_gradients(xc),
-                 mean_weight)
-
-
-def _centre_gradients(xc: np.ndarray) -> np.ndarray:
-    """``∇φ_a |det J|`` at the reference centre (1/2, 1/2) of bilinear cells."""
-    X = np.array([[0.5, 0.5]])
-    import basix
-
-    el = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    tab = el.tabulate(1, X)
-    dphi = np.stack([tab[1, 0, :, 0], tab[2, 0, :, 0]], axis=-1)  # (4, 2) reference
-    J = np.einsum("cka,kb->cab", xc, dphi)
-    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-    adj = np.empty_like(J)  # det J × J^{-1}
-    adj[:, 0, 0], adj[:, 1, 1] = J[:, 1, 1], J[:, 0, 0]
-    adj[:, 0, 1], adj[:, 1, 0] = -J[:, 0, 1], -J[:, 1, 0]
-    return np.einsum("kb,cba->cka", dphi, adj) * np.sign(det)[:, None, None]
+    grad = np.zeros((n, 4, 2))  # ∫_K ∇φ_a = ∮ φ_a n ds = Σ_{e ∋ a} |e|/2 n_e (exact)
+    for e, (a, b) in enumerate(EDGE_CORNERS):
+        half = 0.5 * length[:, e, None] * normal[:, e]
+        grad[:, a] += half
+        grad[:, b] += half
+    return Edges(neighbour, kind, normal, length, depth, corner_edges, grad, mean_weight)
 
 
 def _sides(disc: Discretization, edges: Edges) -> list[Side]:

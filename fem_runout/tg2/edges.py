@@ -1,10 +1,12 @@
 """TG2-PC's corrector on an unstructured quadrilateral mesh, cell by cell (seed eqs. 10–12).
 
-The same element contributions as the UFL corrector of :mod:`.forms` (one-point rules: the
-cell centre for the flux term, the edge midpoint for the edge terms), computed per owned cell
-from its DG0 half-step state and its neighbours' (:class:`fem_runout.quadmesh.Edges`):
+The same element contributions as the UFL corrector of :mod:`.forms`, computed per owned cell
+from its DG0 half-step state and its neighbours' (:class:`fem_runout.quadmesh.Edges`): the
+flux term with ``∫_K ∇φ_a = Σ_{e ∋ a} |e|/2 n_e`` (exact; the UFL form's one-point rule at the
+centre gives the same on any quadrilateral, the integrand being bilinear in the reference
+coordinates), the edge terms at the edge midpoints:
 
-    A_H[K, a] = dt F(Q_K)·∇φ_a(x̂_c) |det J|
+    A_H[K, a] = dt F(Q_K)·∫_K ∇φ_a
               + Σ_{e ∋ a} dt g_e h̄_e (η_K - η_N)_eff n_K |e| / 4        (interior edges)
               - Σ_{e ∋ a, open} dt g_K h_K (∂Z/∂n) d_e n_K |e| / 4       (open edges)
 
@@ -57,7 +59,7 @@ def corrector_cells(cells, dof0, dofs0, Q, U, eta, G, g_const, delta, dt, neighb
         length: Edge lengths.
         depth: Distance to the mirrored cell centre across each edge.
         corner_edges: The two edges at each corner, in summation order.
-        grad_centre: ``∇φ_a |det J|`` at the cell centre.
+        grad_centre: ``∫_K ∇φ_a`` per cell and node.
         dzdn: (n_cells, 4) ``∇Z·n`` at the edge midpoints (open edges).
         out: (m, 4, 3) result.
     """
