@@ -258,7 +258,7 @@ class HazardMaps:
                             if released else deposit + outflow)
         disc = getattr(solver, "disc", None)
         if disc is not None and not disc.structured:
-            extra = self._finish_on_mesh(solver, disc, h)
+            extra = self._finish_on_mesh(solver, disc, h, info.t)
         else:
             nodes = gather_nodal(solver.V, {**self._track, "h": h})
             extra = None
@@ -266,7 +266,8 @@ class HazardMaps:
                 extra = self._write(nodes, info)
         self.summary.update(solver.comm.bcast(extra, root=0))
 
-    def _finish_on_mesh(self, solver: Solver, disc, h: np.ndarray) -> dict[str, Any] | None:
+    def _finish_on_mesh(self, solver: Solver, disc, h: np.ndarray,
+                        info_t: float) -> dict[str, Any] | None:
         """Summary and rasters on an unstructured mesh (collective; the summary on rank 0).
 
         The summary uses the nodes with their lumped areas; the rasters are the Q1 fields
@@ -285,7 +286,7 @@ class HazardMaps:
         target = mesh_target(self.case, disc)
         xs, ys = target.centres()
         local = {"cos": cos}
-        for k in ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h"):
+        for k in ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h", "h0", "z"):
             local[k] = np.zeros(disc.coords.shape[0])
             local[k][:n] = track[k]
             disc.update_ghosts(local[k])
@@ -296,7 +297,19 @@ class HazardMaps:
             g["deposit_depth"] = g["h"]
             rasters = {k: np.where(np.isfinite(g[k]), g[k], NODATA) for k in MAP_NAMES}
             self.written += write_rasters(rasters, target, self.out_dir, self.case.output.ascii)
+            if self.pictures:
+                self._pictures_on_mesh(grids, xs, ys[::-1], info_t)
         return summary
+
+    def _pictures_on_mesh(self, grids: dict[str, np.ndarray], xs: np.ndarray, ys: np.ndarray,
+                          t: float) -> None:
+        """Rank 0: the hazard map and deposit pictures from the sampled grids (rows up)."""
+        from fem_runout.output.maps import draw_maps
+
+        g = {k: np.nan_to_num(v) if k != "z" else v for k, v in grids.items()}
+        g["x"], g["y"] = np.meshgrid(xs, ys)
+        extent = (float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1]))
+        self.written += draw_maps(g, extent, self.out_dir, self.case.name, self.threshold, t)
 
     def _write(self, nodes: dict[str, np.ndarray], info: StepInfo) -> dict[str, float]:
         """Rank 0: grids, summary, rasters and pictures."""
