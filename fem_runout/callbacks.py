@@ -76,3 +76,23 @@ def restartable(callbacks) -> dict:
             k = sum(1 for key in found if key.split("#")[0] == name)
             found[name if k == 0 else f"{name}#{k}"] = cb
     return found
+
+
+class KeepSolver:
+    """Callback that keeps the solver, to sample its fields after a run (bench, tests)."""
+
+    solver = None
+
+    def start(self, solver: Solver, info: StepInfo) -> None:
+        """Keep the solver."""
+        self.solver = solver
+
+    def step(self, solver: Solver, info: StepInfo) -> None:
+        """Nothing per step."""
+
+    def output(self, solver: Solver, info: StepInfo) -> None:
+        """Nothing at output times."""
+
+    def finish(self, solver: Solver, info: StepInfo) -> None:
+        """Keep the solver."""
+        self.solver = solver

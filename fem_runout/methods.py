@@ -36,6 +36,8 @@ class Method:
         builder: ``"module:function"``; the function is ``(case, comm) -> Solver``.
         particles: The method carries material points (particle output, particle counts).
         rheology: The method supports an internal rheology (``material.rheology``).
+        unstructured: The method runs on gmsh meshes (``domain.outline``, ``domain.mesh``),
+            not only on the rectangle's grid.
         description: One line for ``--help`` and docs.
         paper: The seed paper's reported values for this method (e.g. ``front`` on the
             inclined dam break: time [s] -> front [m]; ``lake``: variable -> (L1, L∞) of
@@ -48,6 +50,7 @@ class Method:
     builder: str
     particles: bool = False
     rheology: bool = True
+    unstructured: bool = True
     description: str = ""
     paper: Mapping[str, Any] = field(default_factory=dict)
     marker: tuple[str, str] = ("tab:gray", "x")
@@ -104,6 +107,7 @@ register(Method(
     display="DAMPM",
     builder="mpm.build:build_mpm",
     particles=True,
+    unstructured=False,  # its particle grid is the rectangle's (docs/meshes.md)
     description="depth-averaged material point method (seed §3.2)",
     paper={"front": {5.5: 96.2, 11.0: 239.2},
            "lake": {"h": ("1.26e-12", "1.26e-14"), "hu": ("1.08e-13", "3.57e-14"),

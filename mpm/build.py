@@ -6,7 +6,6 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.config import Case
-from fem_runout.errors import CaseError
 from fem_runout.problem import build_problem
 from mpm.grid import ParticleGrid
 from mpm.migrate import balanced_destinations, migrate
@@ -35,10 +34,6 @@ def still_water_depth(case: Case, comm: MPI.Comm, coords: np.ndarray,
 
 def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     """Create the DAMPM solver of a case (collective): the shared setup plus particles."""
-    if getattr(case.domain, "kind", "rectangle") != "rectangle":
-        raise CaseError("method: mpm (DAMPM) runs on the rectangle's grid only so far "
-                        "(domain.extent/window with cells or cell_size); a gmsh mesh "
-                        "(domain.outline, domain.mesh) needs method: tg2")
     pb = build_problem(case, comm)
     disc, init = pb.disc, pb.init
     grid = ParticleGrid(disc)

@@ -15,6 +15,8 @@ import ufl
 from dolfinx import mesh
 
 import fem_runout.problem as problem
+from fem_runout.callbacks import KeepSolver
+from fem_runout.output.sampling import ray_front_radii
 from fem_runout.quadmesh import KIND_CODES, discretization_from_mesh
 
 
@@ -77,41 +79,11 @@ def on_mesh(amp: float, seed: int | None = 0):
         problem.discretize = original
 
 
-class Keep:
-    """Runner callback keeping the solver (to sample its fields after the run)."""
-
-    solver = None
-
-    def start(self, solver, info):  # noqa: D102
-        self.solver = solver
-
-    def step(self, solver, info):  # noqa: D102
-        pass
-
-    def output(self, solver, info):  # noqa: D102
-        pass
-
-    def finish(self, solver, info):  # noqa: D102
-        self.solver = solver
+#: Runner callback keeping the solver (to sample its fields after the run).
+Keep = KeepSolver
 
 
 def ray_radii(solver, centre, angles, r_max, threshold, step=0.005):
-    """Front radius along rays from ``centre``: where the Q1 depth falls to ``threshold``.
-
-    Collective; the radii on rank 0 (None elsewhere).
-    """
-    from fem_runout.output.sampling import sample_points
-
-    r = np.arange(0.0, r_max, step)
-    pts = np.concatenate([np.column_stack([centre[0] + r * np.cos(a), centre[1] + r * np.sin(a)])
-                          for a in angles])
-    h = sample_points(solver.disc, {"h": solver.fields["h"].x.array}, pts)
-    if h is None:
-        return None
-    out = []
-    for depth in h["h"].reshape(len(angles), r.size):
-        wet = np.flatnonzero(np.nan_to_num(depth) > threshold)
-        k = int(wet[-1]) if wet.size else 0
-        share = (depth[k] - threshold) / (depth[k] - depth[k + 1]) if k + 1 < r.size else 0.0
-        out.append(r[k] + share * step)
-    return np.array(out)
+    """Front radius along rays of the solver's depth (:func:`ray_front_radii`; collective)."""
+    return ray_front_radii(solver.disc, solver.fields["h"].x.array, centre, angles, r_max,
+                           threshold, step)

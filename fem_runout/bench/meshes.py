@@ -77,29 +77,22 @@ def thacker_level(n: int, gmsh: bool, comm) -> dict:
 def hemisphere_level(size: float, gmsh: bool, comm) -> dict:
     """Run the hemisphere to 1.2 s: mean front radius over 16 rays and its relative spread."""
     from fem_runout.api import run
+    from fem_runout.callbacks import KeepSolver
     from fem_runout.config import load_case
-    from fem_runout.output.sampling import sample_points
+    from fem_runout.output.sampling import ray_front_radii
 
     theta = np.linspace(0.0, 2 * np.pi, 129)[:-1]
     disc_outline = [[float(round(25 + 25 * math.cos(t), 6)), float(round(25 + 25 * math.sin(t),
                                                                            6))] for t in theta]
     n = round(50 / size)
     over = _outline(disc_outline, size) if gmsh else [f"domain.cells=[{n},{n}]"]
-    keep = _Keep()
+    keep = KeepSolver()
     r = run(load_case(ROOT / "cases" / "hemisphere.yaml", [*over, "method=tg2"]), write=False,
             comm=comm, callbacks=[keep])
-    angles = np.linspace(0.0, 2 * np.pi, 17)[:-1]
-    step, radius = 0.005, np.arange(0.0, 20.0, 0.005)
-    pts = np.concatenate([np.column_stack([25 + radius * math.cos(a), 25 + radius * math.sin(a)])
-                          for a in angles])
-    h = sample_points(keep.solver.disc, {"h": keep.solver.fields["h"].x.array}, pts)
+    radii = ray_front_radii(keep.solver.disc, keep.solver.fields["h"].x.array, (25.0, 25.0),
+                            np.linspace(0.0, 2 * np.pi, 17)[:-1], 20.0, 1e-3)
     out = None
-    if h is not None:
-        radii = []
-        for depth in np.nan_to_num(h["h"]).reshape(angles.size, radius.size):
-            k = int(np.flatnonzero(depth > 1e-3)[-1])
-            radii.append(radius[k] + step * (depth[k] - 1e-3) / (depth[k] - depth[k + 1]))
-        radii = np.array(radii)
+    if radii is not None:
         out = {"size": size, "mesh": "gmsh" if gmsh else "grid", "cells": r.cells,
                "steps": r.steps, "wall": r.wall_time, "mean_radius": float(radii.mean()),
                "spread": float((radii.max() - radii.min()) / radii.mean())}
@@ -116,22 +109,6 @@ def avakot_level(label: str, overrides: list[str], case: Path, comm) -> dict:
     return {"label": label, "cells": r.cells, "steps": r.steps, "wall": r.wall_time,
             "runout_length": s["runout_length"], "affected_area": s["affected_area"],
             "peak_speed_max": s["peak_speed_max"], "deposit_volume": s["deposit_volume"]}
-
-
-class _Keep:
-    solver = None
-
-    def start(self, solver, info):
-        self.solver = solver
-
-    def step(self, solver, info):
-        pass
-
-    def output(self, solver, info):
-        pass
-
-    def finish(self, solver, info):
-        self.solver = solver
 
 
 def _orders(rows: list[dict]) -> list[float | None]:

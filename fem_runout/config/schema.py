@@ -321,6 +321,16 @@ class Case(StrictSpec):
         return self
 
     @model_validator(mode="after")
+    def _method_meshes(self) -> Case:
+        from fem_runout import methods
+
+        if self.domain.kind != "rectangle" and not methods.get(self.method).unstructured:
+            ok = ", ".join(n for n in methods.method_names() if methods.get(n).unstructured)
+            raise SpecError(f"{methods.get(self.method).display} runs on the rectangle's grid "
+                            f"only so far; domain.outline and domain.mesh need: {ok}", "method")
+        return self
+
+    @model_validator(mode="after")
     def _curvature_needs_slope(self) -> Case:
         if self.model.curvature and not self.slope_form:
             raise SpecError("needs model.form: slope (the default with terrain.dem)",

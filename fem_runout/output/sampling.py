@@ -1,9 +1,10 @@
 """Q1 fields of an unstructured mesh sampled at raster pixel centres (hazard maps, issue 17).
 
-Every rank locates the pixel centres inside its owned cells (inverse bilinear map by Newton's
-method) and evaluates the Q1 interpolant there; rank 0 keeps, for a pixel on an edge shared by
-two cells, the cell with the smaller input index, so the rasters do not depend on the
-partition. Pixels outside the mesh are NaN (written as nodata).
+Every rank locates the points (pixel centres, points along rays) inside its owned cells
+(inverse bilinear map by Newton's method) and evaluates the Q1 interpolant there; rank 0
+keeps, for a point on an edge shared by two cells, the cell with the smaller input index, so
+the rasters do not depend on the partition. Points outside the mesh are NaN (written as
+nodata).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["bed_cosine_nodes", "locate_pixels", "sample_points", "sample_q1"]
+__all__ = ["bed_cosine_nodes", "ray_front_radii", "sample_points", "sample_q1"]
 
 _INSIDE = 1e-10  # tolerance on the reference coordinates (pixels on an edge)
 
@@ -45,96 +46,6 @@ def _inverse(xc, px, py):
         if abs(dX) + abs(dY) < 1e-14:
             break
     return X, Y
-
-
-@numba.njit(cache=True)
-def _locate(xcells, x0, dx, nx, y0, dy, ny, pix, ref, which):
-    """Append (pixel, cell, X, Y) of every pixel centre inside each cell; return the count."""
-    n = 0
-    for c in range(xcells.shape[0]):
-        xc = xcells[c]
-        lo_x, hi_x = xc[:, 0].min(), xc[:, 0].max()
-        lo_y, hi_y = xc[:, 1].min(), xc[:, 1].max()
-        i0 = max(0, int(np.ceil((lo_x - x0) / dx - 1e-9)))
-        i1 = min(nx - 1, int(np.floor((hi_x - x0) / dx + 1e-9)))
-        j0 = max(0, int(np.ceil((lo_y - y0) / dy - 1e-9)))
-        j1 = min(ny - 1, int(np.floor((hi_y - y0) / dy + 1e-9)))
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                X, Y = _inverse(xc, x0 + i * dx, y0 + j * dy)
-                if -_INSIDE <= X <= 1 + _INSIDE and -_INSIDE <= Y <= 1 + _INSIDE:
-                    if n == pix.shape[0]:
-                        return -1
-                    pix[n] = j * nx + i
-                    ref[n, 0], ref[n, 1] = X, Y
-                    which[n] = c
-                    n += 1
-    return n
-
-
-def locate_pixels(xcells: np.ndarray, xs: np.ndarray, ys: np.ndarray):
-    """Find the pixel centres (grid ``xs`` × ``ys``, ascending) inside each bilinear cell.
-
-    Args:
-        xcells: (n_cells, 4, 2) node coordinates in the DOLFINx quadrilateral order.
-        xs: Ascending, evenly spaced pixel-centre x.
-        ys: Ascending, evenly spaced pixel-centre y.
-
-    Returns:
-        ``(pixel, cell, ref)``: flat pixel index ``j len(xs) + i``, cell row and reference
-        coordinates (X, Y) of every hit.
-    """
-    nx, ny = xs.size, ys.size
-    dx = float(xs[1] - xs[0]) if nx > 1 else 1.0
-    dy = float(ys[1] - ys[0]) if ny > 1 else 1.0
-    size = max(1024, 4 * xcells.shape[0])
-    while True:
-        pix, ref = np.empty(size, np.int64), np.empty((size, 2))
-        which = np.empty(size, np.int64)
-        n = _locate(np.ascontiguousarray(xcells, dtype=float), float(xs[0]) if nx else 0.0, dx,
-                    nx, float(ys[0]) if ny else 0.0, dy, ny, pix, ref, which)
-        if n >= 0:
-            return pix[:n], which[:n], ref[:n]
-        size *= 2
-
-
-def sample_q1(disc, values: dict[str, np.ndarray], xs: np.ndarray,
-              ys: np.ndarray) -> dict[str, np.ndarray] | None:
-    """Sample nodal Q1 fields at the pixel centres ``xs`` × ``ys`` (collective).
-
-    Args:
-        disc: The discretization (:class:`fem_runout.mesh.Discretization`).
-        values: Name -> local nodal values (owned then ghosts).
-        xs: Ascending, evenly spaced pixel-centre x.
-        ys: Ascending, evenly spaced pixel-centre y.
-
-    Returns:
-        On rank 0, name -> (len(ys), len(xs)) array, NaN outside the mesh; None elsewhere.
-    """
-    n = disc.n_owned_cells
-    cells = disc.cell_nodes[:n]
-    key = np.asarray(disc.mesh.topology.original_cell_index[:n], dtype=np.int64)
-    pix, which, ref = locate_pixels(disc.coords[cells], xs, ys)
-    X, Y = ref[:, 0], ref[:, 1]
-    phi = np.stack([(1 - X) * (1 - Y), X * (1 - Y), (1 - X) * Y, X * Y], axis=1)
-    names = sorted(values)
-    local = np.column_stack([pix.astype(float), key[which].astype(float)]
-                            + [np.einsum("ka,ka->k", phi, values[k][cells[which]])
-                               for k in names]) if pix.size else np.empty((0, 2 + len(names)))
-    parts = disc.comm.gather(local, root=0)
-    if disc.comm.rank != 0:
-        return None
-    rows = np.concatenate(parts)
-    order = np.lexsort((rows[:, 1], rows[:, 0]))  # by pixel, then the smaller cell key first
-    rows = rows[order]
-    first = np.r_[True, rows[1:, 0] != rows[:-1, 0]] if rows.size else np.zeros(0, bool)
-    rows = rows[first]
-    out = {}
-    for c, k in enumerate(names):
-        grid = np.full(xs.size * ys.size, np.nan)
-        grid[rows[:, 0].astype(np.int64)] = rows[:, 2 + c]
-        out[k] = grid.reshape(ys.size, xs.size)
-    return out
 
 
 @numba.njit(cache=True)
@@ -194,3 +105,55 @@ def sample_points(disc, values: dict[str, np.ndarray],
     pick = stack[best, np.arange(m)]
     hit = np.isfinite(rank_key.min(axis=0))
     return {k: np.where(hit, pick[:, 2 + c], np.nan) for c, k in enumerate(names)}
+
+
+def sample_q1(disc, values: dict[str, np.ndarray], xs: np.ndarray,
+              ys: np.ndarray) -> dict[str, np.ndarray] | None:
+    """Sample nodal Q1 fields on the pixel-centre grid ``xs`` × ``ys`` (collective).
+
+    Args:
+        disc: The discretization.
+        values: Name -> local nodal values (owned then ghosts).
+        xs: Pixel-centre x.
+        ys: Pixel-centre y.
+
+    Returns:
+        On rank 0, name -> (len(ys), len(xs)) array, NaN outside the mesh; None elsewhere.
+    """
+    X, Y = np.meshgrid(xs, ys)
+    got = sample_points(disc, values, np.column_stack([X.ravel(), Y.ravel()]))
+    return None if got is None else {k: v.reshape(X.shape) for k, v in got.items()}
+
+
+def ray_front_radii(disc, h: np.ndarray, centre: tuple[float, float], angles: np.ndarray,
+                    r_max: float, threshold: float, step: float = 0.005) -> np.ndarray | None:
+    """Front radius along rays from ``centre``: where the Q1 depth falls to ``threshold``.
+
+    The depth is sampled every ``step`` along each ray; past the last sample above the
+    threshold the crossing is interpolated linearly (continuous in the data). Collective.
+
+    Args:
+        disc: The discretization.
+        h: Local nodal depth (owned then ghosts).
+        centre: Start of the rays.
+        angles: Ray directions [rad].
+        r_max: Length of the rays [m].
+        threshold: Wet threshold [m].
+        step: Sampling step along the rays [m].
+
+    Returns:
+        On rank 0 the radius of each ray [m]; None elsewhere.
+    """
+    r = np.arange(0.0, r_max, step)
+    pts = np.concatenate([np.column_stack([centre[0] + r * np.cos(a), centre[1] + r * np.sin(a)])
+                          for a in angles])
+    got = sample_points(disc, {"h": h}, pts)
+    if got is None:
+        return None
+    out = []
+    for depth in np.nan_to_num(got["h"]).reshape(len(angles), r.size):
+        wet = np.flatnonzero(depth > threshold)
+        k = int(wet[-1]) if wet.size else 0
+        share = (depth[k] - threshold) / (depth[k] - depth[k + 1]) if k + 1 < r.size else 0.0
+        out.append(r[k] + share * step)
+    return np.array(out)
