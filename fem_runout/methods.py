@@ -107,7 +107,6 @@ register(Method(
     display="DAMPM",
     builder="mpm.build:build_mpm",
     particles=True,
-    unstructured=False,  # its particle grid is the rectangle's (docs/meshes.md)
     description="depth-averaged material point method (seed §3.2)",
     paper={"front": {5.5: 96.2, 11.0: 239.2},
            "lake": {"h": ("1.26e-12", "1.26e-14"), "hu": ("1.08e-13", "3.57e-14"),

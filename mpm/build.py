@@ -8,6 +8,7 @@ from mpi4py import MPI
 from fem_runout.config import Case
 from fem_runout.problem import build_problem
 from mpm.grid import ParticleGrid
+from mpm.mesh_grid import MeshParticleGrid
 from mpm.migrate import balanced_destinations, migrate
 from mpm.particles import seed_particles
 from mpm.solver import MPMSolver
@@ -36,7 +37,7 @@ def build_mpm(case: Case, comm: MPI.Comm) -> MPMSolver:
     """Create the DAMPM solver of a case (collective): the shared setup plus particles."""
     pb = build_problem(case, comm)
     disc, init = pb.disc, pb.init
-    grid = ParticleGrid(disc)
+    grid = ParticleGrid(disc) if disc.structured else MeshParticleGrid(disc)
     still = still_water_depth(case, comm, disc.coords, init["h"])
     # Gauss points make the lake at rest exact; elsewhere the alias-free uniform lattice
     layout = "uniform" if still is None else "gauss"

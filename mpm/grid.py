@@ -72,12 +72,16 @@ class ParticleGrid:
         disc: The shared discretization (mesh, Q1 space, cell–node arrays).
     """
 
+    structured = True
+
     def __init__(self, disc: Discretization) -> None:
         self.disc = disc
         self.comm = disc.comm
         self.nx, self.ny = disc.cells
+        self.n_rows = self.ny
         self.xmin, self.xmax, self.ymin, self.ymax = disc.extent
         self.dx, self.dy = disc.spacing
+        self.min_size = min(self.dx, self.dy)
         xc = disc.coords[disc.cell_nodes]  # (n_cells, 4, 2) dofmap order
         centre = xc.mean(axis=1)
         ij = self._column_row(centre[:, 0], centre[:, 1])
@@ -142,3 +146,86 @@ class ParticleGrid:
     def cell_origin(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower-left corner of structured cells."""
         return self.xmin + (index % self.nx) * self.dx, self.ymin + (index // self.nx) * self.dy
+
+    # -- what the solver asks of any background grid (also :class:`mpm.mesh_grid.MeshParticleGrid`)
+    @property
+    def transfers(self):
+        """The factored GIMP kernels (:data:`mpm.transfers.GIMP`)."""
+        from mpm.transfers import GIMP
+
+        return GIMP
+
+    def particle_basis(self, p):
+        """GIMP weights of particles ``p`` (:func:`mpm.gimp.gimp_basis`)."""
+        from mpm.gimp import gimp_basis
+
+        return gimp_basis(p.cell, p.xi, p.eta, p.lx, p.ly, self.nx, self.ny, self.dx, self.dy)
+
+    def projector(self):
+        """Return the particle → Q1 projection (:class:`mpm.projection.GridProjector`)."""
+        from mpm.projection import GridProjector
+
+        return GridProjector(self.disc.cells, self.disc.spacing)
+
+    def rows(self, cell: np.ndarray) -> np.ndarray:
+        """Grid row of each cell (the strips of :func:`mpm.migrate.balanced_destinations`)."""
+        return cell // self.nx
+
+    def positions(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Physical coordinates of points given in cells."""
+        x0, y0 = self.cell_origin(cell)
+        return x0 + xi * self.dx, y0 + eta * self.dy
+
+    def areas(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray,
+              weights: np.ndarray) -> np.ndarray:
+        """``w Δx Δy``: the area a quadrature weight stands for."""
+        return weights * self.dx * self.dy
+
+    def split_limits(self, cell: np.ndarray, per_direction: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Largest half-widths of a particle domain, ``min(Δ/n, Δ/2)`` per axis."""
+        shape = np.shape(cell)
+        return (np.full(shape, min(self.dx / per_direction, 0.5 * self.dx)),
+                np.full(shape, min(self.dy / per_direction, 0.5 * self.dy)))
+
+    def aspect(self, cell: np.ndarray) -> np.ndarray:
+        """``Δx/Δy`` of the cells (the unit of a particle domain's aspect ratio)."""
+        return np.full(np.shape(cell), self.dx / self.dy)
+
+    def displace(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, dx: np.ndarray,
+                 dy: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Move points by ``(dx, dy)`` [m]: ``(cell, ξ, η, out, swap)``.
+
+        Points past an open side are marked ``out``; a wall side stops them at the wall.
+        ``swap`` is None: every cell has the same axes.
+        """
+        i, j, xi, eta = self.move(cell, xi, eta, dx, dy)
+        kinds = {s.name: s.kind for s in self.disc.sides}
+        out = np.zeros(i.size, dtype=bool)
+        for name, idx, ref, past, edge in (("left", i, xi, i < 0, 0),
+                                           ("right", i, xi, i >= self.nx, self.nx - 1),
+                                           ("bottom", j, eta, j < 0, 0),
+                                           ("top", j, eta, j >= self.ny, self.ny - 1)):
+            if kinds[name] == "open":
+                out |= past
+            else:
+                idx[past] = edge
+                ref[past] = 0.0 if edge == 0 else 1.0
+        return j * self.nx + i, xi, eta, out, None
+
+    def axis_rates(self, p, grad: np.ndarray) -> np.ndarray:
+        """Stretch rates along the axes: the velocity gradient itself (its diagonal is read)."""
+        return grad
+
+    def shift_along(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, axis: int,
+                    dist: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Move points by ``dist`` along x (axis 0) or y, kept inside: ``(cell, ξ, η, None)``."""
+        zero = np.zeros_like(dist)
+        dx, dy = (dist, zero) if axis == 0 else (zero, dist)
+        i, j, xi, eta = self.move(cell, xi, eta, dx, dy)
+        for ref, k, n in ((xi, i, self.nx), (eta, j, self.ny)):
+            low, high = k < 0, k >= n
+            ref[low], k[low] = 0.0, 0
+            ref[high], k[high] = 1.0, n - 1
+        return j * self.nx + i, xi, eta, None

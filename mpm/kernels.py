@@ -16,15 +16,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["P2G_COLUMNS", "g2p_flip", "g2p_gradient", "gimp_interpolate", "interpolate", "p2g",
-           "p2g_momentum"]
+__all__ = ["P2G_COLUMNS", "deposit", "g2p_flip", "g2p_gradient", "gimp_interpolate",
+           "interpolate", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
 
 
 @numba.njit(cache=True, inline="always")
-def _deposit(out, i, c, x, ext):
+def deposit(out, i, c, x, ext):
     """Add ``x`` to node ``i``, column ``c`` in two folds (see :mod:`fem_runout.exact_sum`)."""
     hi = (x + ext[c, 0]) - ext[c, 0]
     out[i, c, 0] += hi
@@ -99,15 +99,15 @@ def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy,
                 w = wx[p, a] * wy[p, b]
                 gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                _deposit(out, i, 0, mass[p] * w, ext)
-                _deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
+                deposit(out, i, 0, mass[p] * w, ext)
+                deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
                          ext)
-                _deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
+                deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
                          ext)
-                _deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
-                _deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
-                _deposit(out, i, 5, area[p] * w, ext)
-                _deposit(out, i, 6, volume[p] * w, ext)
+                deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
+                deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
+                deposit(out, i, 5, area[p] * w, ext)
+                deposit(out, i, 6, volume[p] * w, ext)
     return out
 
 
@@ -131,9 +131,9 @@ def p2g_momentum(basis, mass, u, v, affine, box, ext):
                 rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                _deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
+                deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
                          ext)
-                _deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
+                deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
                          ext)
     return out
 

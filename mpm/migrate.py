@@ -31,10 +31,10 @@ def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarra
     from ``N/P`` by at most about one row's count. One allreduce of ``ny`` integers.
     """
     comm = grid.comm
-    rows = particles.cell // grid.nx
+    rows = grid.rows(particles.cell)
     if comm.size == 1:
         return np.zeros(rows.size, dtype=np.int64)
-    counts = np.bincount(rows, minlength=grid.ny).astype(np.int64)
+    counts = np.bincount(rows, minlength=grid.n_rows).astype(np.int64)
     comm.Allreduce(MPI.IN_PLACE, counts, op=MPI.SUM)
     total = int(counts.sum())
     if total == 0:

@@ -16,11 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from fem_runout.mesh import SIDE_NORMALS, Discretization, Side
+from fem_runout.mesh import SIDE_NORMALS, Discretization, Side, zero_wall_normal
+from fem_runout.physics.slope import SlopeGeometry
 from mpm.exchange import Box
 from mpm.gimp import structured_nodes
 
-__all__ = ["GridSums", "NodalGrid", "NodeBuffers", "no_faster_than"]
+__all__ = ["GridSums", "NodalGrid", "NodeBuffers", "no_faster_than", "open_side_push",
+           "zero_wall_velocity"]
 
 
 class NodeBuffers:
@@ -91,20 +93,31 @@ class GridSums:
 class NodalGrid:
     """Global structured node arrays of a :class:`Discretization`.
 
+    On a gmsh mesh the global numbering is the mesh grid's (:class:`mpm.mesh_grid.
+    MeshParticleGrid`, nodes sorted by ``(y, x)``), and a P2G box is a range of it.
+
     Args:
         disc: The discretization.
+        grid: The particle grid (its numbering is used on a gmsh mesh).
     """
 
-    def __init__(self, disc: Discretization) -> None:
+    def __init__(self, disc: Discretization, grid=None) -> None:
         self.comm = disc.comm
-        self.cells = tuple(disc.cells)
-        self.spacing = tuple(disc.spacing)
-        nx, ny = self.cells
-        self.n_nodes = (nx + 1) * (ny + 1)
-        self.node_index = structured_nodes(disc.coords, disc.extent, disc.spacing, disc.cells)
-        self._owned = self.node_index[: disc.n_owned_nodes]
         self._n_owned = disc.n_owned_nodes
-        self.sides = [self._side(s.name, s.kind, SIDE_NORMALS[s.name]) for s in disc.sides]
+        if not disc.structured:
+            self.n_nodes = self.row_length = grid.n_nodes
+            self.node_index = grid.node_index
+            self.sides = grid.sides
+        else:
+            self.cells = tuple(disc.cells)
+            self.spacing = tuple(disc.spacing)
+            nx, ny = self.cells
+            self.n_nodes = (nx + 1) * (ny + 1)
+            self.row_length = nx + 1
+            self.node_index = structured_nodes(disc.coords, disc.extent, disc.spacing,
+                                               disc.cells)
+            self.sides = [self._side(s.name, s.kind, SIDE_NORMALS[s.name]) for s in disc.sides]
+        self._owned = self.node_index[: disc.n_owned_nodes]
 
     def _side(self, name: str, kind: str, normal: np.ndarray) -> Side:
         """Return a side with structured node indices and its ``∫ φ_i ds`` weights."""
@@ -129,9 +142,9 @@ class NodalGrid:
     def box(self, bounds: np.ndarray) -> Box:
         """Return the box of nodes ``-min row, max row, -min column, max column`` (-inf: none)."""
         if not np.isfinite(bounds[1]):
-            return Box(0, 0, 0, 0, self.cells[0] + 1)
+            return Box(0, 0, 0, 0, self.row_length)
         j0, i0 = int(-bounds[0]), int(-bounds[2])
-        return Box(j0, i0, int(bounds[1]) - j0 + 1, int(bounds[3]) - i0 + 1, self.cells[0] + 1)
+        return Box(j0, i0, int(bounds[1]) - j0 + 1, int(bounds[3]) - i0 + 1, self.row_length)
 
     def with_mass(self, nodes: np.ndarray, sums: np.ndarray) -> GridSums:
         """Return the sums on the nodes with ``mass > 0`` (first column) of sums on ``nodes``."""
@@ -143,6 +156,13 @@ class NodalGrid:
         out = np.zeros(self.n_nodes)
         out[self._owned] = values[: self._n_owned]
         return self.sum(out)
+
+    def geometry_to_global(self, slope: SlopeGeometry) -> SlopeGeometry:
+        """Return a bed geometry on the global node array (collective)."""
+        def glob(a: np.ndarray) -> np.ndarray:
+            return np.stack([self.to_global(np.ascontiguousarray(a[:, k]))
+                             for k in range(a.shape[1])], axis=1)
+        return SlopeGeometry(glob(slope.grad), glob(slope.hess), slope.g, slope.curvature)
 
     def to_local(self, values: np.ndarray) -> np.ndarray:
         """Return the local (owned + ghost) view of a global array."""
@@ -160,3 +180,43 @@ def no_faster_than(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray,
     top = np.maximum(np.hypot(ax, ay), speed)
     scale = np.divide(speed, top, out=np.ones_like(top), where=top > 0.0)
     return ax * scale, ay * scale
+
+
+def zero_wall_velocity(walls: list[Side], sums: GridSums, vx: np.ndarray,
+                       vy: np.ndarray) -> None:
+    """Zero the wall-normal velocity at the walls' nodes with mass (in place).
+
+    ``vx, vy`` are at ``sums.act``. A side of the rectangle zeroes one component; a gmsh
+    mesh's wall nodes lose ``(v·n) n`` with their own normal (both components at corners).
+    """
+    for side in walls:
+        pos, which = sums.locate(side.nodes)
+        if side.normal.ndim == 1:
+            (vx if side.normal[0] != 0.0 else vy)[pos] = 0.0
+        else:
+            zero_wall_normal([side.take(which, pos)], vx, vy)
+
+
+def open_side_push(open_sides: list[Side], sums: GridSums, h: np.ndarray,
+                   still: np.ndarray | None, half_rho_g: float, fx: np.ndarray,
+                   fy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Add the pressure of the fluid beyond open sides: a transmissive boundary.
+
+    The boundary term of eq. 28, ``∫ σ^∇ h φ_i n ds``, with the outside state equal to the
+    boundary node's: ``-½ ρ g (h_i² - H_i²) ∫φ_i ds n``. The seed's zero traction makes an
+    open side a free edge (a reservoir touching it drains into vacuum); with this term an
+    open side lets the flow out like TG2-PC's outflow boundary and holds a layer at rest.
+    ``fx, fy`` are at the nodes with mass (``sums.act``); ``h`` and ``still`` (``H``, or None)
+    on the global node array. Returns new arrays.
+    """
+    fx, fy = fx.copy(), fy.copy()
+    for side in open_sides:
+        pos, which = sums.locate(side.nodes)
+        nodes = side.nodes[which]
+        hb = h[nodes]
+        big = 0.0 if still is None else still[nodes]
+        push = half_rho_g * (hb * hb - big * big) * side.weight[which]
+        n = side.normal if side.normal.ndim == 1 else side.normal[which].T
+        fx[pos] -= push * n[0]
+        fy[pos] -= push * n[1]
+    return fx, fy

@@ -75,8 +75,7 @@ class Particles:
 
     def positions(self, grid: ParticleGrid) -> tuple[np.ndarray, np.ndarray]:
         """Physical coordinates ``(x, y)`` [m]."""
-        x0, y0 = grid.cell_origin(self.cell)
-        return x0 + self.xi * grid.dx, y0 + self.eta * grid.dy
+        return grid.positions(self.cell, self.xi, self.eta)
 
     @property
     def area(self) -> np.ndarray:
@@ -187,7 +186,7 @@ def seed_particles(
     n_loc = per_direction**2
     xi, eta = np.tile(gx.ravel(), index.size), np.tile(gy.ravel(), index.size)
     cell = np.repeat(index, n_loc)
-    area = np.tile(wxy * grid.dx * grid.dy, index.size)
+    area = grid.areas(cell, xi, eta, np.tile(wxy, index.size))
     pid = (index[:, None] * n_loc + np.arange(n_loc)[None, :]).ravel()
     basis = grid.basis(cell, xi, eta)
     h = interpolate(basis.nodes, basis.N, h_nodes)
@@ -195,8 +194,13 @@ def seed_particles(
     u = interpolate(basis.nodes, basis.N, u_nodes)[keep]
     v = interpolate(basis.nodes, basis.N, v_nodes)[keep]
     zero = np.zeros(int(keep.sum()))
-    lx, ly = (np.minimum(0.5 / per_direction, np.minimum(r, 1.0 - r)[keep]) * d
-              for r, d in ((xi, grid.dx), (eta, grid.dy)))
+    if grid.structured:
+        lx, ly = (np.minimum(0.5 / per_direction, np.minimum(r, 1.0 - r)[keep]) * d
+                  for r, d in ((xi, grid.dx), (eta, grid.dy)))
+    else:  # a square of the sub-cell's area; Gauss points: point particles (exact lake)
+        lx, ly = grid.seed_widths(cell[keep], xi[keep], eta[keep], per_direction)
+        if layout != "uniform":
+            lx, ly = np.zeros_like(lx), np.zeros_like(ly)
     return Particles(xi=xi[keep], eta=eta[keep], lx=lx, ly=ly, volume=area[keep] * h[keep],
                      h=h[keep], u=u, v=v, sxx=zero, syy=zero.copy(), sxy=zero.copy(),
                      cell=cell[keep].astype(np.int64), id=pid[keep].astype(np.int64))

@@ -40,14 +40,18 @@ from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from mpm.exchange import FoldExchange, p2g_bounds
 from mpm.fields import FieldWriter
-from mpm.forces import particle_forces, transfer_bounds
-from mpm.gimp import gimp_basis
 from mpm.grid import ParticleGrid
-from mpm.kernels import g2p_flip, g2p_gradient, gimp_interpolate, p2g, p2g_momentum
+from mpm.mesh_grid import MeshParticleGrid
 from mpm.migrate import balanced_destinations, migrate
-from mpm.nodal import GridSums, NodalGrid, NodeBuffers, no_faster_than
+from mpm.nodal import (
+    GridSums,
+    NodalGrid,
+    NodeBuffers,
+    no_faster_than,
+    open_side_push,
+    zero_wall_velocity,
+)
 from mpm.particles import Particles
-from mpm.projection import GridProjector
 from mpm.split import DomainSplitter
 
 __all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
@@ -87,7 +91,8 @@ class MPMSolver:
         depth_cap: ``κ`` of :meth:`update_depth_and_stress` (None: the seed's eq. 42 alone).
     """
 
-    def __init__(self, disc: Discretization, grid: ParticleGrid, particles: Particles,
+    def __init__(self, disc: Discretization, grid: ParticleGrid | MeshParticleGrid,
+                 particles: Particles,
                  z: np.ndarray, density: float, gravity: float,
                  friction: FrictionLaw | None = None, rheology: Bingham | None = None,
                  still_depth: np.ndarray | None = None, flip: float = 0.0,
@@ -101,15 +106,16 @@ class MPMSolver:
         self.flip, self.apic = (0.0 if apic else float(flip)), bool(apic)
         self.depth_cap = depth_cap
         self.z = np.asarray(z, dtype=float)
-        self.nodal = NodalGrid(disc)
+        self.k = grid.transfers  # the kernels of the grid's basis
+        self.nodal = NodalGrid(disc, grid)
         self.writer = FieldWriter(disc.V, self.nodal, self.z)
         self.fields = self.writer.fields
         self.z_g = self.nodal.to_global(self.z)
         self.still_g = None if still_depth is None else self.nodal.to_global(still_depth)
-        self.slope_g = None if slope is None else self._global_geometry(slope)
+        self.slope_g = None if slope is None else self.nodal.geometry_to_global(slope)
         self._hess = np.zeros((0, 3)) if self.slope_g is None else self.slope_g.hess
         self._still = np.zeros(0) if self.still_g is None else self.still_g
-        self.projector = GridProjector(disc.cells, disc.spacing)
+        self.projector = grid.projector()
         self.exchange = FoldExchange(self.comm)
         self.buffers = NodeBuffers(self.nodal.n_nodes)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
@@ -144,7 +150,7 @@ class MPMSolver:
 
     def particle_elevation(self) -> np.ndarray:
         """Terrain elevation at this rank's particles (Q1 interpolation; local, no MPI)."""
-        return gimp_interpolate(self._basis.arrays, self.z_g)
+        return self.k.interpolate(self._basis.arrays, self.z_g)
 
     def _step_limits(self) -> tuple[float, float]:
         """``(stable step, transport step)`` of the current state (collective, no side effect).
@@ -159,9 +165,12 @@ class MPMSolver:
 
     def _compute_step_limits(self) -> tuple[float, float]:
         """Compute the limits of :meth:`_step_limits` (collective)."""
-        top = self.comm.allreduce(self._speed, op=MPI.MAX)  # from particle_forces
-        dx = min(self.disc.spacing)
-        dt = COURANT * dx / top if top > 0 else np.inf
+        dx = self.grid.min_size
+        if self.grid.structured:
+            top = self.comm.allreduce(self._speed, op=MPI.MAX)  # from particle_forces
+            dt = COURANT * dx / top if top > 0 else np.inf
+        else:  # cells of many sizes: each particle's own cell crossing time
+            dt = COURANT * self.comm.allreduce(self._crossing_time(), op=MPI.MIN)
         slope = self.comm.allreduce(self._slope, op=MPI.MAX)
         dt = min(dt, acceleration_limit(dx, self.g, slope))
         mu = self.rheology.viscosity if self.rheology is not None else 0.0
@@ -169,6 +178,14 @@ class MPMSolver:
         if mu > 0.0:  # the yield stress is bounded (|σ_Y| <= τ_Y): only μ limits the step
             dt = min(dt, VISCOUS * self.rho * dx * dx / (8.0 * mu))
         return dt, transport
+
+    def _crossing_time(self) -> float:
+        """``min_p s_p / (|v_p| + sqrt(max(G_p, g) h_p))``, ``s_p`` the size around its cell."""
+        p = self.particles
+        speed = np.sqrt(p.u * p.u + p.v * p.v) + np.sqrt(np.maximum(self._gp, self.g) * p.h)
+        size = self.grid.local_size[p.cell]
+        ok = speed > 0.0
+        return float(np.min(size[ok] / speed[ok], initial=np.inf))
 
     def _pic_scale(self) -> float:
         """``Δt_stable / Δt_transport`` (collective), see :meth:`_step_limits`."""
@@ -190,12 +207,12 @@ class MPMSolver:
             old_y = self._put("old_y", sums, sums.g[:, 2] / mass)
         else:
             stopped = old_x = old_y = self._put("zero", sums, 0.0)
-        p.u, p.v = g2p_flip(b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
+        p.u, p.v = self.k.g2p_flip(b.arrays, vx, vy, old_x, old_y, stopped, p.u, p.v, keep)
         if self.apic:
-            c = g2p_gradient(b.arrays, vx, vy)
+            c = self.k.g2p_gradient(b.arrays, vx, vy)
             p.cxx, p.cxy, p.cyx, p.cyy = (np.ascontiguousarray(c[:, a, k])
                                           for a in range(2) for k in range(2))
-        grad = g2p_gradient(b.arrays, *self._strain_velocity(vx, vy))
+        grad = self.k.g2p_gradient(b.arrays, *self._strain_velocity(vx, vy))
         self.update_depth_and_stress(dt, grad, self._grid_depth())
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
@@ -276,29 +293,12 @@ class MPMSolver:
 
     def _zero_walls(self, vx: np.ndarray, vy: np.ndarray) -> None:
         """Zero the wall-normal velocity at the walls' nodes with mass (in place)."""
-        for side in self.walls:
-            pos, _ = self._own.locate(side.nodes)
-            (vx if side.normal[0] != 0.0 else vy)[pos] = 0.0
+        zero_wall_velocity(self.walls, self._own, vx, vy)
 
     def _open_side_pressure(self, fx: np.ndarray, fy: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Add the pressure of the fluid beyond open sides: a transmissive boundary.
-
-        The boundary term of eq. 28, ``∫ σ^∇ h φ_i n ds``, with the outside state equal to the
-        boundary node's: ``-½ ρ g (h_i² - H_i²) ∫φ_i ds n``. The seed's zero traction makes an
-        open side a free edge (a reservoir touching it drains into vacuum); with this term an
-        open side lets the flow out like TG2-PC's outflow boundary and holds a layer at rest.
-        ``fx, fy`` are at the nodes with mass.
-        """
-        fx, fy = fx.copy(), fy.copy()
-        for side in self.open_sides:
-            pos, which = self._own.locate(side.nodes)
-            nodes = side.nodes[which]
-            hb = self._h[nodes]
-            big = 0.0 if self.still_g is None else self.still_g[nodes]
-            push = 0.5 * self.rho * self.g * (hb * hb - big * big) * side.weight[which]
-            fx[pos] -= push * side.normal[0]
-            fy[pos] -= push * side.normal[1]
-        return fx, fy
+        """Add the pressure of the fluid beyond open sides (:func:`mpm.nodal.open_side_push`)."""
+        return open_side_push(self.open_sides, self._own, self._h, self.still_g,
+                              0.5 * self.rho * self.g, fx, fy)
 
     def _strain_velocity(self, vx: np.ndarray, vy: np.ndarray) -> tuple[np.ndarray, ...]:
         """Nodal velocity of the strain (eq. 40): MUSL ``Σ_p m_p v_p^{k+1} N_i / M_i``.
@@ -314,7 +314,7 @@ class MPMSolver:
         mass = self.rho * p.volume
         su, sv = p.transfer_speeds(self.grid.dx, self.grid.dy, self.apic)
         ext = extractors([_amax(mass * su), _amax(mass * sv)], self.splitter.next_id, self.comm)
-        mom = self.exchange.sum(p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
+        mom = self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
                                              self._box_args, ext))[sums.index]
         mass = sums.g[:, 0]
         mx, my = mom[:, 0] / mass, mom[:, 1] / mass
@@ -333,7 +333,7 @@ class MPMSolver:
             return None
         sums = self._own
         lumped = self._put("lumped", sums, sums.g[:, 6] / self.projector.lumped_mass[sums.act])
-        return gimp_interpolate(self._basis.arrays, lumped)
+        return self.k.interpolate(self._basis.arrays, lumped)
 
     def update_depth_and_stress(self, dt: float, grad: np.ndarray,
                                 grid_depth: np.ndarray | None = None) -> None:
@@ -365,19 +365,9 @@ class MPMSolver:
         if not (np.isfinite(dx).all() and np.isfinite(dy).all()):
             self._problem = "the particle velocity has NaN or infinite values"
             return
-        i, j, p.xi, p.eta = grid.move(p.cell, p.xi, p.eta, dx, dy)
-        kinds = {s.name: s.kind for s in self.disc.sides}
-        out = np.zeros(len(p), dtype=bool)
-        for name, idx, ref, past, edge in (("left", i, p.xi, i < 0, 0),
-                                           ("right", i, p.xi, i >= grid.nx, grid.nx - 1),
-                                           ("bottom", j, p.eta, j < 0, 0),
-                                           ("top", j, p.eta, j >= grid.ny, grid.ny - 1)):
-            if kinds[name] == "open":
-                out |= past
-            else:
-                idx[past] = edge
-                ref[past] = 0.0 if edge == 0 else 1.0
-        p.cell = j * grid.nx + i
+        p.cell, p.xi, p.eta, out, swap = grid.displace(p.cell, p.xi, p.eta, dx, dy)
+        if swap is not None and swap.any():  # the new cells' axes are the old ones swapped
+            p.lx[swap], p.ly[swap] = p.ly[swap], p.lx[swap]
         left = float(p.volume[out].sum())
         self.outflow_volume += self.comm.allreduce(left, op=MPI.SUM)
         if out.any():
@@ -387,16 +377,16 @@ class MPMSolver:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
         self._limits: tuple[float, float] | None = None
         p, g = self.particles, self.grid
-        self._basis = b = gimp_basis(p.cell, p.xi, p.eta, p.lx, p.ly, g.nx, g.ny, g.dx, g.dy)
-        forces, self._gp, self._slope, self._speed = particle_forces(
+        self._basis = b = g.particle_basis(p)
+        forces, self._gp, self._slope, self._speed = self.k.particle_forces(
             b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
             p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
         mass = self.rho * p.volume
         speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
-        local = transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
+        local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
         ext = fold_extractors(p2g_bounds(local, self.comm), self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
-        folds = p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
+        folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
                     self._box_args, ext)
         totals = self.exchange.start(folds, box)
         self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
@@ -413,13 +403,6 @@ class MPMSolver:
     def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
         """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""
         return self.buffers.put(name, sums.act, values)
-
-    def _global_geometry(self, slope: SlopeGeometry) -> SlopeGeometry:
-        """Return the geometry on the global node array (collective)."""
-        def glob(a: np.ndarray) -> np.ndarray:
-            return np.stack([self.nodal.to_global(np.ascontiguousarray(a[:, k]))
-                             for k in range(a.shape[1])], axis=1)
-        return SlopeGeometry(glob(slope.grad), glob(slope.hess), slope.g, slope.curvature)
 
 
 def _amax(values: np.ndarray) -> float:

@@ -48,17 +48,23 @@ MAX_ASPECT = 4.0
 
 @numba.njit(cache=True)
 def _stretch(lx, ly, h, dt, grad, cell, max_aspect, thin_depth, limit_x, limit_y):
-    """Return the new half-widths (see :meth:`DomainSplitter.stretch`); ``cell = Δx/Δy``."""
+    """Return the new half-widths (see :meth:`DomainSplitter.stretch`); ``cell = Δx/Δy``.
+
+    ``cell``, ``limit_x``, ``limit_y``: per particle (the size of its cell).
+    """
     n = lx.size
     out_x, out_y = np.empty(n), np.empty(n)
     for p in range(n):
         a = lx[p] * max(1.0 + dt * grad[p, 0, 0], 1e-3)
         b = ly[p] * max(1.0 + dt * grad[p, 1, 1], 1e-3)
-        ratio = min(max(a / (b * cell), 1.0 / max_aspect), max_aspect) * cell
+        if a == 0.0 or b == 0.0:  # a point particle (no domain) stays one
+            out_x[p], out_y[p] = 0.0, 0.0
+            continue
+        ratio = min(max(a / (b * cell[p]), 1.0 / max_aspect), max_aspect) * cell[p]
         area = a * b
         out_x[p], out_y[p] = np.sqrt(area * ratio), np.sqrt(area / ratio)
         if h[p] < thin_depth:
-            out_x[p], out_y[p] = min(out_x[p], limit_x), min(out_y[p], limit_y)
+            out_x[p], out_y[p] = min(out_x[p], limit_x[p]), min(out_y[p], limit_y[p])
     return out_x, out_y
 
 
@@ -75,8 +81,7 @@ class DomainSplitter:
     def __init__(self, grid: ParticleGrid, per_direction: int, next_id: int,
                  thin_depth: float = 0.0) -> None:
         self.grid = grid
-        self.limit = (min(grid.dx / per_direction, 0.5 * grid.dx),
-                      min(grid.dy / per_direction, 0.5 * grid.dy))
+        self.per_direction = int(per_direction)
         self.next_id = int(next_id)
         self.count = 0
         self.max_aspect = MAX_ASPECT
@@ -89,8 +94,13 @@ class DomainSplitter:
         only up to ``l_x/l_y`` in ``[1/r, r]``, ``r`` = :data:`MAX_ASPECT`: beyond it the
         domain is made less elongated at the same area (see the module docstring).
         """
-        p.lx, p.ly = _stretch(p.lx, p.ly, p.h, dt, grad, self.grid.dx / self.grid.dy,
-                              self.max_aspect, self.thin_depth, *self.limit)
+        rates = self.grid.axis_rates(p, grad)
+        p.lx, p.ly = _stretch(p.lx, p.ly, p.h, dt, rates, self.grid.aspect(p.cell),
+                              self.max_aspect, self.thin_depth, *self.limits(p))
+
+    def limits(self, p: Particles) -> tuple[np.ndarray, np.ndarray]:
+        """Largest half-widths ``(l_x, l_y)`` of each particle's domain (its cell's size)."""
+        return self.grid.split_limits(p.cell, self.per_direction)
 
     def split(self, p: Particles) -> Particles:
         """Split along x, then y, until every half-width is within the limit (collective).
@@ -98,18 +108,19 @@ class DomainSplitter:
         ``p`` is changed in place (the parents' halves); the result holds parents and children.
         """
         while self._any_wide(p):  # the usual step: one small message, nothing to split
-            p = self._split_axis(p, "lx", self.limit[0])
-            p = self._split_axis(p, "ly", self.limit[1])
+            p = self._split_axis(p, "lx", 0)
+            p = self._split_axis(p, "ly", 1)
         return p
 
     def _any_wide(self, p: Particles) -> bool:
         """Whether a particle on any rank exceeds the limit (collective)."""
-        wide = bool((p.lx > self.limit[0]).any() or (p.ly > self.limit[1]).any())
+        lim_x, lim_y = self.limits(p)
+        wide = bool((p.lx > lim_x).any() or (p.ly > lim_y).any())
         return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
 
-    def _split_axis(self, p: Particles, key: str, limit: float) -> Particles:
+    def _split_axis(self, p: Particles, key: str, axis: int) -> Particles:
         comm = self.grid.comm
-        idx = np.flatnonzero(getattr(p, key) > limit)
+        idx = np.flatnonzero(getattr(p, key) > self.limits(p)[axis])
         parents = np.concatenate(comm.allgather(p.id[idx]))
         if parents.size == 0:
             return p
@@ -134,12 +145,10 @@ class DomainSplitter:
 
     def _shift(self, p: Particles, idx, key: str, dist: np.ndarray) -> None:
         """Move particles ``idx`` by ``dist`` along x (``lx``) or y, kept inside the rectangle."""
-        g = self.grid
-        zero = np.zeros_like(dist)
-        dx, dy = (dist, zero) if key == "lx" else (zero, dist)
-        i, j, xi, eta = g.move(p.cell[idx], p.xi[idx], p.eta[idx], dx, dy)
-        for ref, k, n in ((xi, i, g.nx), (eta, j, g.ny)):
-            low, high = k < 0, k >= n
-            ref[low], k[low] = 0.0, 0
-            ref[high], k[high] = 1.0, n - 1
-        p.xi[idx], p.eta[idx], p.cell[idx] = xi, eta, j * g.nx + i
+        cell, xi, eta, swap = self.grid.shift_along(p.cell[idx], p.xi[idx], p.eta[idx],
+                                                    0 if key == "lx" else 1, dist)
+        p.cell[idx], p.xi[idx], p.eta[idx] = cell, xi, eta
+        if swap is not None and swap.any():  # the new cell's axes are the old ones swapped
+            at = np.asarray(idx) if not isinstance(idx, slice) else np.arange(len(p))
+            at = at[swap]
+            p.lx[at], p.ly[at] = p.ly[at].copy(), p.lx[at].copy()

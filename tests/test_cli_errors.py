@@ -197,11 +197,3 @@ def test_main_returns_2_in_process(tmp_path: Path, capsys: pytest.CaptureFixture
     assert main([str(tmp_path / "case.yaml")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "time.cfl: must be > 0 and <= 1, got 2" in err
-
-
-def test_dampm_on_a_gmsh_mesh_is_refused_before_writing(tmp_path: Path) -> None:
-    """DAMPM needs the rectangle's grid so far: a .msh case with --method mpm exits 2."""
-    case = Path(__file__).resolve().parents[1] / "cases" / "curved_channel.yaml"
-    result = _run(tmp_path, [str(case), "--method", "mpm", "--out", "out"])
-    _check_rejected(result, "method: DAMPM runs on the rectangle's grid only so far")
-    assert _tree(tmp_path) == []

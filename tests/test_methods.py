@@ -115,3 +115,19 @@ def test_method_names_appear_only_in_the_registry():
                       for node in ast.walk(tree)
                       if isinstance(node, ast.Constant) and node.value in names]
     assert found == []
+
+
+def test_a_grid_only_method_is_refused_on_a_gmsh_mesh(monkeypatch):
+    """A method without the ``unstructured`` capability: a mesh case stops at load (exit 2)."""
+    from dataclasses import replace
+
+    from fem_runout import methods
+    from fem_runout.config import load_case
+    from fem_runout.errors import CaseError
+
+    grid_only = replace(methods.get("mpm"), name="grid_only", display="GridOnly",
+                        unstructured=False)
+    monkeypatch.setitem(methods.METHODS, "grid_only", grid_only)
+    with pytest.raises(CaseError, match="method: GridOnly runs on the rectangle's grid only"):
+        load_case(ROOT / "cases" / "curved_channel.yaml", [("method", "grid_only")])
+    load_case(ROOT / "cases" / "curved_channel.yaml", [("method", "mpm")])  # both run on it

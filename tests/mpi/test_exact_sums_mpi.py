@@ -71,7 +71,7 @@ def test_fold_exchange_sums_the_touched_nodes_with_the_bits_of_one_rank():
 
     def run(k, comm):
         nodal = NodalGrid.__new__(NodalGrid)
-        nodal.cells = (nx, ny)
+        nodal.row_length = nx + 1
         bounds = [-j0[k].min(), np.minimum(j0[k] + 2, ny).max(), -i0[k].min(),
                   np.minimum(i0[k] + 2, nx).max()] if k.size else [-np.inf] * 4
         box = nodal.box(np.array(bounds, dtype=float))

@@ -1,0 +1,391 @@
+"""Numba kernels of DAMPM on a quadrilateral mesh: locating points, the particle domains' weights.
+
+Every cell ``k`` is ``x(ξ, η) = x_0 + e_1 ξ + e_2 η + c ξ η`` (``geo[k] = e_1, e_2, c``,
+``origin[k] = x_0``; corners in basix order ``(0,0), (1,0), (0,1), (1,1)``). Points are kept
+as a cell and reference coordinates (:mod:`mpm.mesh_grid`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["INSIDE", "MAX_CELLS", "MAX_WALK", "WALK_EDGES", "domain_basis", "jacobian_det",
+           "point_basis", "tangents", "walk", "axis_rates", "axis_steps"]
+
+#: Corners of the four edges in the walk's order: ξ = 0, ξ = 1, η = 0, η = 1.
+WALK_EDGES = np.array([[0, 2], [1, 3], [0, 1], [2, 3]], dtype=np.int64)
+#: A point within this much (reference units) of a cell counts as inside it.
+INSIDE = 1e-12
+#: Most cells a walk visits in one displacement.
+MAX_WALK = 64
+#: Most Newton iterations of the inverse bilinear map.
+NEWTON = 20
+#: Most cells a particle domain reaches (4 around a regular vertex; up to 6 at a vertex
+#: with 5 or 6 cells).
+MAX_CELLS = 8
+
+
+@numba.njit(cache=True, inline="always")
+def _map(geo, k, a, b):
+    """``x(ξ, η) - x_0`` of cell ``k`` (geo[k] = e1, e2, c as 6 numbers)."""
+    return (geo[k, 0] * a + geo[k, 2] * b + geo[k, 4] * a * b,
+            geo[k, 1] * a + geo[k, 3] * b + geo[k, 5] * a * b)
+
+
+@numba.njit(cache=True, inline="always")
+def _solve(geo, k, rx, ry, a, b):
+    """Newton for ``x(ξ, η) - x(a, b) = r`` in cell ``k`` from ``(a, b)``: ``(ξ, η, converged)``.
+
+    The residual is formed from differences (``e_1 dξ + e_2 dη + c (ξ η - a b)``), so a zero
+    displacement returns ``(a, b)`` exactly and far-away coordinates lose no digits.
+    """
+    da, db = 0.0, 0.0
+    for _ in range(NEWTON):
+        na, nb = a + da, b + db
+        fx = geo[k, 0] * da + geo[k, 2] * db + geo[k, 4] * (na * nb - a * b) - rx
+        fy = geo[k, 1] * da + geo[k, 3] * db + geo[k, 5] * (na * nb - a * b) - ry
+        j00, j01 = geo[k, 0] + geo[k, 4] * nb, geo[k, 2] + geo[k, 4] * na
+        j10, j11 = geo[k, 1] + geo[k, 5] * nb, geo[k, 3] + geo[k, 5] * na
+        det = j00 * j11 - j01 * j10
+        if det == 0.0:
+            break
+        sa = (j11 * fx - j01 * fy) / det
+        sb = (j00 * fy - j10 * fx) / det
+        da -= sa
+        db -= sb
+        if abs(sa) + abs(sb) <= 1e-12:
+            return a + da, b + db, True
+    return a + da, b + db, False
+
+
+@numba.njit(cache=True, inline="always")
+def _estimate(geo, k, tx, ty):
+    """Find the reference coordinates of the point ``t`` (relative to cell ``k``'s origin).
+
+    Newton from the affine estimate at the centre: ``(ξ, η, converged)`` (the estimate if not).
+    """
+    mx, my = _map(geo, k, 0.5, 0.5)
+    j00, j10, j01, j11 = geo[k, 0] + 0.5 * geo[k, 4], geo[k, 1] + 0.5 * geo[k, 5], \
+        geo[k, 2] + 0.5 * geo[k, 4], geo[k, 3] + 0.5 * geo[k, 5]
+    det = j00 * j11 - j01 * j10
+    rx, ry = tx - mx, ty - my
+    a = min(max(0.5 + (j11 * rx - j01 * ry) / det, -2.0), 3.0)
+    b = min(max(0.5 + (-j10 * rx + j00 * ry) / det, -2.0), 3.0)
+    if -0.5 <= a <= 1.5 and -0.5 <= b <= 1.5:  # near the cell: the bilinear map is one-to-one
+        ex, ey = _map(geo, k, a, b)
+        na, nb, ok = _solve(geo, k, tx - ex, ty - ey, a, b)
+        if ok:
+            return na, nb, True
+    return a, b, False
+
+
+@numba.njit(cache=True, inline="always")
+def _locate(geo, origin, neighbour, kind, k, a0, b0, dx, dy):
+    """Locate the point ``x(a0, b0) + (dx, dy)`` of cell ``k``: ``(cell, ξ, η, code)``.
+
+    Walks across the edge the point lies beyond until it is inside a cell; ``code`` is 0, or
+    the kind of the boundary edge it stopped at (1 open, 2 wall), where ``(ξ, η)`` is clamped.
+    """
+    if dx == 0.0 and dy == 0.0:
+        return k, a0, b0, 0
+    a, b, ok = _solve(geo, k, dx, dy, a0, b0)
+    px, py = _map(geo, k, a0, b0)
+    return _walk_from(geo, origin, neighbour, kind, k, a, b, ok, px + dx, py + dy)
+
+
+@numba.njit(cache=True, inline="always")
+def _walk_from(geo, origin, neighbour, kind, k, a, b, ok, tx, ty):
+    """Locate the point ``t`` (relative to cell ``k``'s origin): ``(cell, ξ, η, code)``.
+
+    ``(a, b)`` are its coordinates in ``k`` if ``ok``; the result is as :func:`_locate`'s.
+
+    In each cell the point's coordinates come from Newton (:func:`_estimate`); outside, the
+    walk crosses the edge it lies farthest beyond that has a cell behind it, and stops at the
+    boundary only when every edge the point lies beyond is a boundary edge.
+    """
+    code = 0
+    for _ in range(MAX_WALK):
+        if not ok:
+            a, b, ok = _estimate(geo, k, tx, ty)
+        e, best, wall, wall_v = -1, INSIDE, -1, INSIDE
+        for s in range(4):
+            v = -a if s == 0 else (a - 1.0 if s == 1 else (-b if s == 2 else b - 1.0))
+            if neighbour[k, s] >= 0:
+                if v > best:
+                    e, best = s, v
+            elif v > wall_v:
+                wall, wall_v = s, v
+        if e < 0:
+            if wall >= 0:
+                code = kind[k, wall]
+            break
+        nb = neighbour[k, e]
+        tx += origin[k, 0] - origin[nb, 0]
+        ty += origin[k, 1] - origin[nb, 1]
+        k, ok = nb, False
+    return k, min(max(a, 0.0), 1.0), min(max(b, 0.0), 1.0), code
+
+
+@numba.njit(cache=True, inline="always")
+def tangents(geo, k, a, b):
+    """``∂x/∂ξ`` and ``∂x/∂η`` of cell ``k`` at ``(a, b)``: ``(x_ξ, y_ξ, x_η, y_η)``."""
+    return (geo[k, 0] + geo[k, 4] * b, geo[k, 1] + geo[k, 5] * b,
+            geo[k, 2] + geo[k, 4] * a, geo[k, 3] + geo[k, 5] * a)
+
+
+@numba.njit(cache=True, inline="always")
+def _swapped(geo, k, a0, b0, m, a1, b1):
+    """Whether cell ``m``'s η axis at ``(a1, b1)`` is closer to ``k``'s ξ axis than its ξ axis."""
+    kx, ky, _, _ = tangents(geo, k, a0, b0)
+    mx, my, nx, ny = tangents(geo, m, a1, b1)
+    along = abs(kx * mx + ky * my) / math.sqrt(mx * mx + my * my)
+    across = abs(kx * nx + ky * ny) / math.sqrt(nx * nx + ny * ny)
+    return across > along
+
+
+@numba.njit(cache=True)
+def walk(geo, origin, neighbour, kind, cell, xi, eta, dx, dy):
+    """Move points by ``(dx, dy)``: ``(cell, ξ, η, out, swap)``.
+
+    ``out``: left through an open edge; ``swap``: the new cell's axes are the old ones
+    swapped (a particle domain's half-widths along ξ and η trade places).
+    """
+    n = cell.size
+    c_out, a_out, b_out = cell.copy(), xi.copy(), eta.copy()
+    out, swap = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
+    for p in range(n):
+        k, a, b, code = _locate(geo, origin, neighbour, kind, cell[p], xi[p], eta[p],
+                                dx[p], dy[p])
+        c_out[p], a_out[p], b_out[p], out[p] = k, a, b, code == 1
+        if k != cell[p]:
+            swap[p] = _swapped(geo, cell[p], xi[p], eta[p], k, a, b)
+    return c_out, a_out, b_out, out, swap
+
+
+@numba.njit(cache=True, inline="always")
+def _add(geo, corners, k, a, b, w, px, py, ox, oy, nodes, N, dN, rel, p, q0):
+    """Add ``w N_c`` and ``w ∇N_c`` of the point ``(a, b)`` of cell ``k`` to slots ``q0..q0+3``.
+
+    ``x_c - x_p`` is set (``(ox, oy)``: the cell's origin relative to the particle cell's).
+    Written out per corner (a loop over tuples cost 10 times more).
+    """
+    j00, j10, j01, j11 = tangents(geo, k, a, b)
+    s = w / (j00 * j11 - j01 * j10)
+    # ∇N = J^{-T} ∇_ξ N: (j11 dξ - j10 dη, -j01 dξ + j00 dη) / det
+    da0, db0 = -(1.0 - b), -(1.0 - a)
+    da1, db1 = 1.0 - b, -a
+    da2, db2 = -b, 1.0 - a
+    da3, db3 = b, a
+    nodes[p, q0], nodes[p, q0 + 1] = corners[k, 0], corners[k, 1]
+    nodes[p, q0 + 2], nodes[p, q0 + 3] = corners[k, 2], corners[k, 3]
+    N[p, q0] += w * ((1.0 - a) * (1.0 - b))
+    N[p, q0 + 1] += w * (a * (1.0 - b))
+    N[p, q0 + 2] += w * ((1.0 - a) * b)
+    N[p, q0 + 3] += w * (a * b)
+    dN[p, q0, 0] += s * (j11 * da0 - j10 * db0)
+    dN[p, q0, 1] += s * (-j01 * da0 + j00 * db0)
+    dN[p, q0 + 1, 0] += s * (j11 * da1 - j10 * db1)
+    dN[p, q0 + 1, 1] += s * (-j01 * da1 + j00 * db1)
+    dN[p, q0 + 2, 0] += s * (j11 * da2 - j10 * db2)
+    dN[p, q0 + 2, 1] += s * (-j01 * da2 + j00 * db2)
+    dN[p, q0 + 3, 0] += s * (j11 * da3 - j10 * db3)
+    dN[p, q0 + 3, 1] += s * (-j01 * da3 + j00 * db3)
+    # corner c relative to the cell origin: 0, e1, e2, e1 + e2 + c
+    bx, by = ox - px, oy - py
+    rel[p, q0, 0], rel[p, q0, 1] = bx, by
+    rel[p, q0 + 1, 0], rel[p, q0 + 1, 1] = geo[k, 0] + bx, geo[k, 1] + by
+    rel[p, q0 + 2, 0], rel[p, q0 + 2, 1] = geo[k, 2] + bx, geo[k, 3] + by
+    rel[p, q0 + 3, 0] = (geo[k, 0] + geo[k, 2] + geo[k, 4]) + bx
+    rel[p, q0 + 3, 1] = (geo[k, 1] + geo[k, 3] + geo[k, 5]) + by
+
+
+@numba.njit(cache=True, inline="always")
+def _breaks(lo, hi, out):
+    """``lo``, the cell edges 0 and 1 strictly inside ``(lo, hi)``, ``hi``; returns the count."""
+    out[0] = lo
+    m = 1
+    for edge in (0.0, 1.0):
+        if lo < edge < hi:
+            out[m] = edge
+            m += 1
+    out[m] = hi
+    return m + 1
+
+
+@numba.njit(cache=True, inline="always")
+def _particle_domain(geo, origin, corners, neighbour, kind, k, x0, y0, lx, ly, px, py,
+                     nodes, N, dN, rel, seen, bx, by):
+    """Fill the scratch rows ``0 .. 4 n - 1`` of one particle; returns ``n`` (cells reached)."""
+    if lx == 0.0 and ly == 0.0:
+        _add(geo, corners, k, x0, y0, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
+        return 1
+    r = 0.5 / math.sqrt(3.0)
+    t00, t10, t01, t11 = tangents(geo, k, x0, y0)
+    a = lx / math.sqrt(t00 * t00 + t10 * t10)
+    b = ly / math.sqrt(t01 * t01 + t11 * t11)
+    nbx, nby = _breaks(x0 - a, x0 + a, bx), _breaks(y0 - b, y0 + b, by)
+    n_seen, total = 0, 0.0
+    for ix in range(nbx - 1):
+        for iy in range(nby - 1):
+            du, dv = bx[ix + 1] - bx[ix], by[iy + 1] - by[iy]
+            last, la, lb = -1, 0.5, 0.5
+            for g in range(4):
+                s = 0.5 * (bx[ix] + bx[ix + 1]) + (2.0 * (g % 2) - 1.0) * r * du
+                t = 0.5 * (by[iy] + by[iy + 1]) + (2.0 * (g // 2) - 1.0) * r * dv
+                j00, j10, j01, j11 = tangents(geo, k, s, t)
+                w = 0.25 * du * dv * abs(j00 * j11 - j01 * j10)
+                m, sa, sb = k, s, t
+                if not (0.0 <= s <= 1.0 and 0.0 <= t <= 1.0):
+                    mx, my = _map(geo, k, s, t)
+                    found = False
+                    if last >= 0:  # the piece's previous point's cell, Newton from there
+                        rx = mx + (origin[k, 0] - origin[last, 0])
+                        ry = my + (origin[k, 1] - origin[last, 1])
+                        lx0, ly0 = _map(geo, last, la, lb)
+                        sa, sb, ok = _solve(geo, last, rx - lx0, ry - ly0, la, lb)
+                        found = ok and -INSIDE <= sa <= 1.0 + INSIDE and \
+                            -INSIDE <= sb <= 1.0 + INSIDE
+                        if found:
+                            m = last
+                            sa, sb = min(max(sa, 0.0), 1.0), min(max(sb, 0.0), 1.0)
+                    if not found:
+                        m, sa, sb, code = _walk_from(geo, origin, neighbour, kind, k, s, t,
+                                                     True, mx, my)
+                        if code != 0:
+                            continue  # beyond the mesh: the domain is clipped there
+                        last, la, lb = m, sa, sb
+                slot = 0
+                while slot < n_seen and seen[slot] != m:
+                    slot += 1
+                if slot == n_seen:
+                    if n_seen == MAX_CELLS:
+                        continue
+                    seen[slot] = m
+                    n_seen += 1
+                    for q in range(4 * slot, 4 * slot + 4):
+                        N[0, q], dN[0, q, 0], dN[0, q, 1] = 0.0, 0.0, 0.0
+                _add(geo, corners, m, sa, sb, w, px, py, origin[m, 0] - origin[k, 0],
+                     origin[m, 1] - origin[k, 1], nodes, N, dN, rel, 0, 4 * slot)
+                total += w
+    for q in range(4 * n_seen):
+        N[0, q] /= total
+        dN[0, q, 0] /= total
+        dN[0, q, 1] /= total
+    return n_seen
+
+
+@numba.njit(cache=True)
+def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, offsets, nodes,
+                 S, dS, rel):
+    """Weights of the particle domains: GIMP on a quadrilateral mesh.
+
+    A particle's domain is the rectangle ``[ξ_p ± a] × [η_p ± b]`` of its cell's reference
+    coordinates, ``a = l_x / |∂x/∂ξ|``, ``b = l_y / |∂x/∂η|`` (``l_x, l_y``: half-widths along
+    the cell's axes [m]). It is cut at the cell's edges; each piece gets the 2 × 2 Gauss rule
+    in the cell's (extended) map, weights ``|det J|``, its points located in their own cells
+    (points beyond the mesh boundary are dropped), and
+
+        S_ip = Σ_q w_q N_i(x_q) / Σ_q w_q,    ∇S_ip = Σ_q w_q ∇N_i(x_q) / Σ_q w_q:
+
+    the domain averages of GIMP, exact for a domain inside its cell (the integrands are
+    polynomials of degree <= 3 per reference direction), continuous as a domain crosses an
+    edge (a new piece starts with zero width), ``Σ_i S_ip = 1`` and ``Σ_i ∇S_ip = 0``.
+    Domains that tile the cells (the uniform seeding) balance the pressure of a uniform layer
+    exactly, as on the grid. A point particle (``l = 0``) gets the point values of seed
+    eq. 33.
+
+    The results go to ``offsets`` (n + 1) and the buffers ``nodes, S, dS, rel`` (kept by the
+    caller: fresh arrays cost more in page faults than the computation): particle ``p``'s
+    entries are ``offsets[p] .. offsets[p + 1] - 1``, four per cell its domain reaches (at
+    most :data:`MAX_CELLS`).
+
+    Returns:
+        The number of entries used, or -1 if the buffers are too short (call again with
+        longer ones).
+    """
+    n = cell.size
+    cap = nodes.size
+    offsets[0] = 0
+    w = 4 * MAX_CELLS
+    snodes = np.empty((1, w), dtype=np.int64)
+    sN, sdN, srel = np.zeros((1, w)), np.zeros((1, w, 2)), np.zeros((1, w, 2))
+    seen = np.empty(MAX_CELLS, dtype=np.int64)
+    bx, by = np.empty(4), np.empty(4)
+    for p in range(n):
+        k = cell[p]
+        px, py = _map(geo, k, xi[p], eta[p])
+        for q in range(4):
+            sN[0, q], sdN[0, q, 0], sdN[0, q, 1] = 0.0, 0.0, 0.0
+        used = 4 * _particle_domain(geo, origin, corners, neighbour, kind, k, xi[p], eta[p],
+                                    lx[p], ly[p], px, py, snodes, sN, sdN, srel, seen, bx, by)
+        start = offsets[p]
+        if start + used > cap:
+            return -1
+        for q in range(used):
+            nodes[start + q] = snodes[0, q]
+            S[start + q] = sN[0, q]
+            dS[start + q, 0], dS[start + q, 1] = sdN[0, q, 0], sdN[0, q, 1]
+            rel[start + q, 0], rel[start + q, 1] = srel[0, q, 0], srel[0, q, 1]
+        offsets[p + 1] = start + used
+    return offsets[n]
+
+
+@numba.njit(cache=True)
+def point_basis(geo, corners, cell, xi, eta):
+    """Q1 values ``(n, 4)`` and physical gradients ``(n, 4, 2)`` at points (local dofs: seeding).
+
+    Args:
+        geo: (n_cells, 6) ``e_1, e_2, c`` of every cell.
+        corners: (n_cells, 4) nodes of the cells.
+        cell: (n,) the points' cells.
+        xi: (n,) first reference coordinate.
+        eta: (n,) second reference coordinate.
+    """
+    n = cell.size
+    nodes = np.empty((n, 4), dtype=np.int64)
+    N, dN, rel = np.zeros((n, 4)), np.zeros((n, 4, 2)), np.zeros((n, 4, 2))
+    for p in range(n):
+        _add(geo, corners, cell[p], xi[p], eta[p], 1.0, 0.0, 0.0, 0.0, 0.0, nodes, N, dN, rel,
+             p, 0)
+    return nodes, N, dN
+
+
+@numba.njit(cache=True)
+def jacobian_det(geo, cell, xi, eta):
+    """``|det J|`` at the points."""
+    out = np.empty(cell.size)
+    for p in range(cell.size):
+        j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
+        out[p] = abs(j00 * j11 - j01 * j10)
+    return out
+
+
+@numba.njit(cache=True)
+def axis_rates(geo, cell, xi, eta, grad):
+    """Stretch rates along the cells' axes, ``t̂·∇v·t̂`` for ``t̂`` along ξ and along η.
+
+    Returned as the diagonal of an (n, 2, 2) array (what the splitter reads).
+    """
+    out = np.zeros((cell.size, 2, 2))
+    for p in range(cell.size):
+        j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
+        for d, (tx, ty) in enumerate(((j00, j10), (j01, j11))):
+            s = 1.0 / (tx * tx + ty * ty)
+            out[p, d, d] = s * (tx * (grad[p, 0, 0] * tx + grad[p, 0, 1] * ty)
+                                + ty * (grad[p, 1, 0] * tx + grad[p, 1, 1] * ty))
+    return out
+
+
+@numba.njit(cache=True)
+def axis_steps(geo, cell, xi, eta, dist, axis):
+    """Displacements ``dist t̂`` along each point's cell axis (0: ξ, 1: η): ``(dx, dy)``."""
+    dx, dy = np.empty(cell.size), np.empty(cell.size)
+    for p in range(cell.size):
+        j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
+        tx, ty = (j00, j10) if axis == 0 else (j01, j11)
+        s = dist[p] / math.sqrt(tx * tx + ty * ty)
+        dx[p], dy[p] = s * tx, s * ty
+    return dx, dy

@@ -1,0 +1,334 @@
+"""Particle → Q1 projection on an unstructured quadrilateral mesh (lumped / consistent / FCT).
+
+The unstructured counterpart of :class:`mpm.projection.GridProjector` (same method, see its
+module docstring): lumped ``h^L = b / M_L``, consistent ``h^H = M_C^{-1} b``, blended per cell
+as in FCT, ``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``f_K = (M_L^K - M_C^K) h^H`` and
+``α_K = 0`` on the cells touching a node whose first column would be negative.
+
+The element matrices ``∫_K φ_a φ_b`` of the bilinear cells are computed once. ``M_C^{-1} b``
+is a Jacobi-preconditioned conjugate gradient with a matrix-free, cell-by-cell product (fixed
+summation order, serial: deterministic). It runs on the window of :data:`WINDOW_RINGS` node
+rings (adjacency through cells) around the nodes with sums, on the cells whose four nodes are
+in the window (the principal submatrix of ``M_C``; the solution is taken as 0 outside).
+``M_C^{-1}`` decays like about ``0.27^k`` per ring, so the truncation is round-off.
+"""
+
+from __future__ import annotations
+
+import basix
+import numba
+import numpy as np
+
+__all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector", "element_masses"]
+
+#: Node rings added around the nodes with sums (the window of the projection).
+WINDOW_RINGS = 24
+#: CG stops when the residual is below ``CG_RTOL ‖b‖`` (per column) or after the maximum.
+CG_RTOL, CG_MAX_ITERATIONS = 1e-15, 500
+
+
+def element_masses(cells: np.ndarray, coords: np.ndarray) -> np.ndarray:
+    """(n_cells, 4, 4) element mass matrices ``∫_K φ_a φ_b`` of bilinear quadrilaterals.
+
+    ``cells`` (n_cells, 4) in basix's Q1 order, ``coords`` (n_nodes, 2); the Gauss rule is
+    exact for a bilinear map (``det J`` affine). The matrices are exactly symmetric.
+    """
+    pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
+    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+    tab = element.tabulate(1, pts)  # (3, nq, 4, 1)
+    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
+    jac = np.einsum("cka,qkb->cqab", coords[cells], dphi)
+    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+    mass = np.einsum("cq,qi,qj->cij", wts[None, :] * np.abs(det), phi, phi)
+    return 0.5 * (mass + mass.transpose(0, 2, 1))
+
+
+@numba.njit(cache=True)
+def _node_cells(cells, n_nodes):
+    """CSR node → cell adjacency ``(offsets, adj)``, each node's cells in cell order."""
+    offsets = np.zeros(n_nodes + 1, dtype=np.int64)
+    for c in range(cells.shape[0]):
+        for q in range(4):
+            offsets[cells[c, q] + 1] += 1
+    for a in range(n_nodes):
+        offsets[a + 1] += offsets[a]
+    fill = offsets[:-1].copy()
+    adj = np.empty(offsets[-1], dtype=np.int64)
+    for c in range(cells.shape[0]):
+        for q in range(4):
+            a = cells[c, q]
+            adj[fill[a]] = c
+            fill[a] += 1
+    return offsets, adj
+
+
+@numba.njit(cache=True)
+def _rings(seeds, offsets, adj, cells, n_nodes, rings):
+    """Sorted nodes within ``rings`` rings (breadth first through the cells) of ``seeds``."""
+    seen = np.zeros(n_nodes, dtype=np.bool_)
+    out = np.empty(n_nodes, dtype=np.int64)
+    n = 0
+    for s in seeds:
+        if not seen[s]:
+            seen[s] = True
+            out[n] = s
+            n += 1
+    lo = 0
+    for _ in range(rings):
+        hi = n
+        for t in range(lo, hi):
+            for e in range(offsets[out[t]], offsets[out[t] + 1]):
+                for q in range(4):
+                    b = cells[adj[e], q]
+                    if not seen[b]:
+                        seen[b] = True
+                        out[n] = b
+                        n += 1
+        if n == hi:
+            break
+        lo = hi
+    return np.sort(out[:n])
+
+
+@numba.njit(cache=True)
+def _window_cells(index, offsets, adj, cells, n_nodes):
+    """Cells with all nodes in ``index`` (sorted): ``(ids, local)``, local node numbers."""
+    local = np.full(n_nodes, -1, dtype=np.int64)
+    size = 0
+    for t in range(index.size):
+        local[index[t]] = t
+        size += offsets[index[t] + 1] - offsets[index[t]]
+    buf = np.empty(size, dtype=np.int64)
+    count = 0
+    for t in range(index.size):
+        for e in range(offsets[index[t]], offsets[index[t] + 1]):
+            c = adj[e]
+            if cells[c, 0] == index[t] and min(local[cells[c, 1]], local[cells[c, 2]],
+                                               local[cells[c, 3]]) >= 0:
+                buf[count] = c
+                count += 1
+    ids = np.sort(buf[:count])
+    lc = np.empty((count, 4), dtype=np.int64)
+    for t in range(count):
+        for q in range(4):
+            lc[t, q] = local[cells[ids[t], q]]
+    return ids, lc
+
+
+@numba.njit(cache=True)
+def _dot(x, y):
+    """``x · y`` summed in index order."""
+    s = 0.0
+    for a in range(x.size):
+        s += x[a] * y[a]
+    return s
+
+
+@numba.njit(cache=True)
+def _matvec(ids, lc, emass, x, y):
+    """``y = M_C x`` on the window, cell by cell in cell order."""
+    y[:] = 0.0
+    for t in range(ids.size):
+        m = emass[ids[t]]
+        x0, x1, x2, x3 = x[lc[t, 0]], x[lc[t, 1]], x[lc[t, 2]], x[lc[t, 3]]
+        for q in range(4):
+            y[lc[t, q]] += m[q, 0] * x0 + m[q, 1] * x1 + m[q, 2] * x2 + m[q, 3] * x3
+
+
+@numba.njit(cache=True)
+def _pcg(ids, lc, emass, b, rtol, max_it):
+    """``M_C^{-1} b`` per column by Jacobi-preconditioned CG: ``(x, max iterations)``."""
+    n, k = b.shape
+    inv = np.zeros(n)
+    for t in range(ids.size):
+        for q in range(4):
+            inv[lc[t, q]] += emass[ids[t], q, q]
+    for a in range(n):
+        inv[a] = 1.0 / inv[a] if inv[a] > 0.0 else 1.0
+    x = np.zeros((n, k))
+    r, z, p, w = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    its = 0
+    for m in range(k):
+        for a in range(n):
+            r[a] = b[a, m]
+            z[a] = r[a] * inv[a]
+            p[a] = z[a]
+        stop = rtol * np.sqrt(_dot(r, r))
+        rz = _dot(r, z)
+        it = 0
+        while it < max_it and np.sqrt(_dot(r, r)) > stop:
+            _matvec(ids, lc, emass, p, w)
+            alpha = rz / _dot(p, w)
+            for a in range(n):
+                x[a, m] += alpha * p[a]
+                r[a] -= alpha * w[a]
+                z[a] = r[a] * inv[a]
+            rz, rz_old = _dot(r, z), rz
+            for a in range(n):
+                p[a] = z[a] + (rz / rz_old) * p[a]
+            it += 1
+        its = max(its, it)
+    return x, its
+
+
+@numba.njit(cache=True, inline="always")
+def _add_antidiffusion(acc, lc, m, high, t, sign):
+    """``acc += sign f_K`` for window cell ``t``, ``f_K,q = Σ_s M_qs (h_q - h_s)``."""
+    for col in range(high.shape[1]):
+        h0, h1 = high[lc[t, 0], col], high[lc[t, 1], col]
+        h2, h3 = high[lc[t, 2], col], high[lc[t, 3], col]
+        for q in range(4):
+            hq = high[lc[t, q], col]
+            f = m[q, 0] * (hq - h0) + m[q, 1] * (hq - h1) + m[q, 2] * (hq - h2) + m[q, 3] * (
+                hq - h3)
+            acc[lc[t, q], col] += sign * f
+
+
+@numba.njit(cache=True)
+def _fct_blend(ids, lc, emass, low, high, mass, tol):
+    """:func:`mpm.projection._fct_blend` with cells found by node → cell adjacency."""
+    n, k = low.shape
+    offsets, adj = _node_cells(lc, n)
+    acc = np.zeros(low.shape)
+    for t in range(ids.size):
+        _add_antidiffusion(acc, lc, emass[ids[t]], high, t, 1.0)
+    alpha = np.ones(ids.size, dtype=np.bool_)
+    cand, n_cand = np.arange(n), n
+    seen = np.zeros(n, dtype=np.bool_)
+    bad = np.empty(n, dtype=np.int64)
+    passes = 0
+    while True:
+        passes += 1
+        n_bad = 0
+        for t in range(n_cand):
+            if low[cand[t], 0] + acc[cand[t], 0] / mass[cand[t]] < -tol:
+                bad[n_bad] = cand[t]
+                n_bad += 1
+        n_next = 0
+        for t in range(n_bad):
+            for e in range(offsets[bad[t]], offsets[bad[t] + 1]):
+                c = adj[e]
+                if not alpha[c]:
+                    continue
+                alpha[c] = False
+                _add_antidiffusion(acc, lc, emass[ids[c]], high, c, -1.0)
+                for q in range(4):
+                    if not seen[lc[c, q]]:
+                        seen[lc[c, q]] = True
+                        cand[n_next] = lc[c, q]
+                        n_next += 1
+        if n_next == 0:
+            break
+        for t in range(n_next):
+            seen[cand[t]] = False
+        n_cand = n_next
+    out = np.empty(low.shape)
+    for a in range(n):
+        for m in range(k):
+            out[a, m] = low[a, m] + acc[a, m] / mass[a]
+    return out, passes
+
+
+@numba.njit(cache=True)
+def _blend(sub, mass, ids, lc, emass, rtol, max_it):
+    """Project a window's sums: ``(h, FCT passes, CG iterations)``, ``h[:, 0] >= 0``."""
+    low = np.empty(sub.shape)
+    top = 0.0
+    for a in range(sub.shape[0]):
+        for m in range(sub.shape[1]):
+            low[a, m] = sub[a, m] / mass[a]
+        top = max(top, abs(low[a, 0]))
+    high, its = _pcg(ids, lc, emass, sub, rtol, max_it)
+    res, passes = _fct_blend(ids, lc, emass, low, high, mass, 1e-13 * top)
+    for a in range(sub.shape[0]):
+        res[a, 0] = max(res[a, 0], 0.0)
+    return res, passes, its
+
+
+class MeshProjector:
+    """Project particle sums onto Q1 on an unstructured quadrilateral mesh (FCT, h >= 0).
+
+    Args:
+        cells: (n_cells, 4) node indices in basix's Q1 order (reference corners (0,0),
+            (1,0), (0,1), (1,1)).
+        coords: (n_nodes, 2) node coordinates.
+
+    Attributes:
+        element_mass: (n_cells, 4, 4) consistent element mass matrices.
+        lumped_mass: (n_nodes,) ``∫ φ_i`` (element row sums added in cell order).
+        iterations: FCT passes of the last projection.
+        solver_iterations: CG iterations of the last consistent solve (max over columns).
+    """
+
+    def __init__(self, cells: np.ndarray, coords: np.ndarray) -> None:
+        self.cells = np.ascontiguousarray(cells, dtype=np.int64)
+        self.n_nodes = int(coords.shape[0])
+        self.element_mass = element_masses(self.cells, np.asarray(coords, dtype=float))
+        self.lumped_mass = np.zeros(self.n_nodes)  # np.add.at adds in cell order
+        np.add.at(self.lumped_mass, self.cells.ravel(), self.element_mass.sum(axis=2).ravel())
+        self._offsets, self._adj = _node_cells(self.cells, self.n_nodes)
+        self.iterations = 0
+        self.solver_iterations = 0
+
+    def window(self, nodes: np.ndarray) -> np.ndarray:
+        """Sorted nodes within :data:`WINDOW_RINGS` rings of ``nodes`` (global indices)."""
+        return _rings(np.asarray(nodes, dtype=np.int64), self._offsets, self._adj, self.cells,
+                      self.n_nodes, WINDOW_RINGS)
+
+    def consistent(self, b: np.ndarray, window: np.ndarray | None = None) -> np.ndarray:
+        """``M_C^{-1} b`` for (n, k) sums on the window's nodes; (n, k), 0 outside.
+
+        The matrix is the principal submatrix of ``M_C`` on ``window`` (sorted global node
+        indices, all nodes by default; each in a cell of the window). Sets
+        :attr:`solver_iterations`.
+        """
+        index = (np.arange(self.n_nodes) if window is None
+                 else np.asarray(window, dtype=np.int64))
+        ids, lc = self._window_cells(index)
+        x, self.solver_iterations = _pcg(ids, lc, self.element_mass,
+                                         np.ascontiguousarray(b, dtype=float), CG_RTOL,
+                                         CG_MAX_ITERATIONS)
+        return x
+
+    def project(self, b: np.ndarray) -> np.ndarray:
+        """FCT blend of the lumped and consistent projections of (n_nodes, k) global sums.
+
+        The window is around the nodes where the first column is nonzero; the fields are 0
+        outside it. Returns (n_nodes, k) fields, the first (``h``) >= 0.
+        """
+        out = np.zeros(b.shape)
+        nz = np.flatnonzero(b[:, 0])
+        if nz.size == 0:
+            self.iterations = self.solver_iterations = 0
+            return out
+        index = self.window(nz)
+        out[index] = self._blend(index, np.ascontiguousarray(b[index], dtype=float))
+        return out
+
+    def project_nodes(self, nodes: np.ndarray, values: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` of one column given on the (sorted) nodes where it is nonzero.
+
+        Returns:
+            ``(index, h)``: the window's global nodes (sorted) and the field on them (>= 0;
+            zero elsewhere).
+        """
+        if nodes.size == 0:
+            self.iterations = self.solver_iterations = 0
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        index = self.window(nodes)
+        sub = np.zeros((index.size, 1))
+        sub[np.searchsorted(index, nodes), 0] = values
+        return index, self._blend(index, sub)[:, 0]
+
+    def _blend(self, index: np.ndarray, sub: np.ndarray) -> np.ndarray:
+        """Projection of (n, k) sums on the window ``index``; sets the iteration counts."""
+        ids, lc = self._window_cells(index)
+        res, self.iterations, self.solver_iterations = _blend(
+            sub, self.lumped_mass[index], ids, lc, self.element_mass, CG_RTOL,
+            CG_MAX_ITERATIONS)
+        return res
+
+    def _window_cells(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`_window_cells` of the window ``index`` (sorted global nodes)."""
+        return _window_cells(index, self._offsets, self._adj, self.cells, self.n_nodes)

@@ -1,0 +1,161 @@
+"""MeshProjector: Q1 projection (lumped / consistent / FCT) on unstructured quad meshes."""
+
+import numpy as np
+import pytest
+
+from mpm.mesh_projection import MeshProjector
+from mpm.projection import GridProjector
+
+
+def _mesh(nx, ny, dx=1.0, dy=1.0, jitter=0.0, seed=0):
+    """Structured nx × ny grid (node j (nx + 1) + i), nodes moved by up to jitter × cell."""
+    jj, ii = np.meshgrid(np.arange(ny + 1), np.arange(nx + 1), indexing="ij")
+    coords = np.stack([ii.ravel() * dx, jj.ravel() * dy], axis=1).astype(float)
+    if jitter:
+        rng = np.random.default_rng(seed)
+        radius = jitter * rng.uniform(0.0, 1.0, coords.shape[0])
+        angle = rng.uniform(0.0, 2.0 * np.pi, coords.shape[0])
+        coords += np.stack([radius * np.cos(angle) * dx, radius * np.sin(angle) * dy], axis=1)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    base = (j * (nx + 1) + i).ravel()
+    cells = np.stack([base, base + 1, base + nx + 1, base + nx + 2], axis=1).astype(np.int64)
+    return cells, coords
+
+
+def _tri_quad_mesh(nx, ny, d, seed):
+    """Jittered triangulated grid, each triangle cut into 3 quads: valences 3, 4 and 6."""
+    _, tri_nodes = _mesh(nx, ny, d, d, jitter=0.25, seed=seed)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    v = (j * (nx + 1) + i).ravel()
+    tris = np.concatenate([np.stack([v, v + 1, v + nx + 2], 1),
+                           np.stack([v, v + nx + 2, v + nx + 1], 1)])
+    edges = np.sort(np.stack([tris, np.roll(tris, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+    mids = len(tri_nodes) + inv.reshape(-1, 3)  # mid of edge (k, k + 1)
+    cent = len(tri_nodes) + len(uniq) + np.arange(len(tris))
+    coords = np.concatenate([tri_nodes, tri_nodes[uniq].mean(axis=1), tri_nodes[tris].mean(axis=1)])
+    cells = [np.stack([tris[:, k], mids[:, k], mids[:, k - 1], cent], 1) for k in range(3)]
+    return np.concatenate(cells).astype(np.int64), coords
+
+
+_GAUSS = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
+
+
+def _mass_matrix(cells, coords):
+    """Dense consistent Q1 mass matrix by 2 × 2 Gauss (exact for bilinear maps)."""
+    n = coords.shape[0]
+    mc = np.zeros((n, n))
+    xc = coords[cells]  # (nc, 4, 2), corners (0,0), (1,0), (0,1), (1,1)
+    for s in _GAUSS:
+        for t in _GAUSS:
+            phi = np.array([(1 - s) * (1 - t), s * (1 - t), (1 - s) * t, s * t])
+            ds = np.array([-(1 - t), 1 - t, -t, t])
+            dt = np.array([-(1 - s), -s, 1 - s, s])
+            jx, jy = np.einsum("cka,k->ca", xc, ds), np.einsum("cka,k->ca", xc, dt)
+            det = jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0]
+            assert np.all(det > 0.0)
+            local = 0.25 * det[:, None, None] * phi[None, :, None] * phi[None, None, :]
+            np.add.at(mc, (cells[:, :, None], cells[:, None, :]), local)
+    return mc
+
+
+@pytest.mark.parametrize("kind", ["jittered", "mixed valence"])
+def test_exact_for_a_q1_field(kind):
+    if kind == "jittered":
+        cells, coords = _mesh(20, 15, dx=0.1, dy=0.1, jitter=0.3, seed=1)
+    else:
+        cells, coords = _tri_quad_mesh(12, 9, 0.15, seed=1)
+        valence = np.bincount(cells.ravel())
+        assert valence.min() == 1 and set(valence[valence > 2]) == {3, 4, 6}
+    h = 1.0 + 0.3 * coords[:, 0] - 0.2 * coords[:, 1]
+    b = _mass_matrix(cells, coords) @ h
+    proj = MeshProjector(cells, coords)
+    assert np.max(np.abs(proj.consistent(b[:, None])[:, 0] - h)) < 1e-13
+    out = proj.project(b[:, None])[:, 0]
+    assert np.max(np.abs(out - h)) < 1e-12
+    assert proj.iterations == 1 and 0 < proj.solver_iterations < 100
+    nodes = np.flatnonzero(b)
+    index, hn = proj.project_nodes(nodes, b[nodes])
+    assert np.array_equal(index, np.arange(coords.shape[0]))
+    assert np.max(np.abs(hn - h)) < 1e-12
+    # lumped mass = ∫ φ_i = row sums of M_C
+    assert np.allclose(proj.lumped_mass, _mass_matrix(cells, coords).sum(axis=1), rtol=1e-14)
+
+
+def _step_sums(coords, seed, width):
+    rng = np.random.default_rng(seed)
+    b = rng.uniform(0.0, 1.0, (coords.shape[0], 2))
+    b[:, 0] *= coords[:, 0] < width
+    return b
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_matches_grid_projector_on_a_structured_grid(seed):
+    nx, ny, dx, dy = 40, 30, 0.7, 1.3
+    cells, coords = _mesh(nx, ny, dx, dy)
+    b = _step_sums(coords, seed, 0.45 * nx * dx)
+    grid, mesh = GridProjector((nx, ny), (dx, dy)), MeshProjector(cells, coords)
+    assert np.allclose(mesh.lumped_mass, grid.lumped_mass, rtol=1e-14, atol=0.0)
+    ref, out = grid.project(b), mesh.project(b)
+    assert grid.iterations > 1  # the FCT switched cells off
+    assert mesh.iterations == grid.iterations
+    assert np.max(np.abs(out - ref)) < 1e-12 * np.max(np.abs(ref))
+    nodes = np.flatnonzero(b[:, 0])
+    gi, gh = grid.project_nodes(nodes, b[nodes, 0])
+    mi, mh = mesh.project_nodes(nodes, b[nodes, 0])
+    full_g, full_m = np.zeros(len(coords)), np.zeros(len(coords))
+    full_g[gi], full_m[mi] = gh, mh
+    assert np.max(np.abs(full_m - full_g)) < 1e-12 * np.max(gh)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+@pytest.mark.parametrize("kind", ["jittered", "mixed valence"])
+def test_conservation_and_positivity(seed, kind):
+    if kind == "jittered":
+        cells, coords = _mesh(36, 28, dx=0.5, dy=0.5, jitter=0.3, seed=seed)
+    else:
+        cells, coords = _tri_quad_mesh(28, 22, 0.65, seed=seed)
+    rng = np.random.default_rng(seed)
+    b = np.where(coords[:, 0] < 7.0, 1.0, 1e-3) * rng.uniform(0.5, 1.5, coords.shape[0])
+    proj = MeshProjector(cells, coords)
+    h = proj.project(b[:, None])[:, 0]
+    assert proj.iterations > 1
+    assert np.all(h >= 0.0)
+    assert abs(proj.lumped_mass @ h - b.sum()) < 1e-13 * b.sum()
+    index, hn = proj.project_nodes(np.arange(len(b)), b)
+    assert np.array_equal(hn, h[index])
+
+
+def test_window_truncation_is_round_off():
+    cells, coords = _mesh(120, 120, dx=1.0, dy=1.0, jitter=0.3, seed=5)
+    proj = MeshProjector(cells, coords)
+    n = coords.shape[0]
+    rng = np.random.default_rng(5)
+    jj, ii = np.meshgrid(np.arange(55, 63), np.arange(50, 60), indexing="ij")
+    nodes = np.sort((jj * 121 + ii).ravel())
+    values = rng.uniform(0.2, 1.0, nodes.size)
+    index, h = proj.project_nodes(nodes, values)
+    assert 2000 < index.size < 5000 and proj.iterations > 1
+    b = np.zeros((n, 1))
+    b[nodes, 0] = values
+    whole = proj._blend(np.arange(n), b)[:, 0]  # the projection on the whole mesh
+    windowed = np.zeros(n)
+    windowed[index] = h
+    assert np.max(np.abs(windowed - whole)) < 1e-12 * np.max(whole)
+    assert np.array_equal(proj.project(b)[:, 0], windowed)
+    full = proj.consistent(b)[:, 0]
+    part = proj.consistent(b[index], index)[:, 0]
+    assert np.max(np.abs(part - full[index])) < 1e-12 * np.max(np.abs(full))
+    assert abs(proj.lumped_mass[index] @ h - values.sum()) < 1e-13 * values.sum()
+
+
+def test_empty_and_deterministic():
+    cells, coords = _mesh(30, 30, jitter=0.3, seed=6)
+    proj = MeshProjector(cells, coords)
+    index, h = proj.project_nodes(np.zeros(0, dtype=np.int64), np.zeros(0))
+    assert index.size == 0 and h.size == 0
+    assert not proj.project(np.zeros((len(coords), 2))).any()
+    b = _step_sums(coords, 7, 12.0)
+    first = proj.project(b)
+    proj.project(_step_sums(coords, 8, 20.0))  # results depend on the inputs only
+    assert np.array_equal(proj.project(b), first)
