@@ -17,7 +17,8 @@ import numpy as np
 
 from mpm.kernels import node_index
 
-__all__ = ["particle_forces", "transfer_bounds"]
+__all__ = ["particle_bounds", "particle_force", "particle_forces", "running_bound",
+           "transfer_bounds"]
 
 
 @numba.njit(cache=True)
@@ -71,29 +72,42 @@ def particle_forces(basis, z, hess, still, rho, g, volume, h,
                 if wb:
                     big += w * still[i]
         slope = max(slope, gx * gx + gy * gy)  # squared: one sqrt at the end
-        grav = g
-        if slope_form:
-            uhu = u[p] * (hxx * u[p] + hxy * v[p]) + v[p] * (hxy * u[p] + hyy * v[p])
-            cos2 = 1.0 / (1.0 + gx * gx + gy * gy)
-            grav = cos2 * max(g + uhu, 0.0)
-        gp[p] = grav
-        if wb:
-            area = volume[p] / h[p]
-            weight = rho * grav * area * (h[p] - big)  # eq. 46: -ρ g (h - H) ∇Z
-            pressure = 0.5 * rho * grav * area * (h[p] * h[p] - big * big)
-        else:
-            weight = rho * grav * volume[p]  # eq. 34: -m_p g ∇Z
-            pressure = 0.5 * rho * grav * volume[p] * h[p]  # eq. 26: ½ ρ g h V_p
-        out[0, p], out[1, p] = -weight * gx, -weight * gy
-        out[2, p] = pressure - volume[p] * sxx[p]
-        out[3, p] = pressure - volume[p] * syy[p]
-        out[4, p] = -volume[p] * sxy[p]
-        speed = max(speed, math.sqrt(u[p] * u[p] + v[p] * v[p]) + math.sqrt(max(grav, g) * h[p]))
+        speed = max(speed, particle_force(p, gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g,
+                                          volume, h, u, v, sxx, syy, sxy, out, gp))
     return out, gp, math.sqrt(slope), speed
 
 
 @numba.njit(cache=True, inline="always")
-def _bound(m, x):
+def particle_force(p, gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g, volume, h, u, v, sxx,
+                   syy, sxy, out, gp):
+    """Write particle ``p``'s body force and force tensor (seed eqs. 26, 34; 46 with ``wb``).
+
+    ``(gx, gy)``: the bed gradient at the particle; ``hxx, hxy, hyy``: the bed's Hessian
+    (slope form); ``big``: the still-water depth ``H``. Sets ``out[:, p]`` and ``gp[p]``;
+    returns the wave speed ``|v_p| + sqrt(max(G_p, g) h_p)``.
+    """
+    grav = g
+    if slope_form:
+        uhu = u[p] * (hxx * u[p] + hxy * v[p]) + v[p] * (hxy * u[p] + hyy * v[p])
+        cos2 = 1.0 / (1.0 + gx * gx + gy * gy)
+        grav = cos2 * max(g + uhu, 0.0)
+    gp[p] = grav
+    if wb:
+        area = volume[p] / h[p]
+        weight = rho * grav * area * (h[p] - big)  # eq. 46: -ρ g (h - H) ∇Z
+        pressure = 0.5 * rho * grav * area * (h[p] * h[p] - big * big)
+    else:
+        weight = rho * grav * volume[p]  # eq. 34: -m_p g ∇Z
+        pressure = 0.5 * rho * grav * volume[p] * h[p]  # eq. 26: ½ ρ g h V_p
+    out[0, p], out[1, p] = -weight * gx, -weight * gy
+    out[2, p] = pressure - volume[p] * sxx[p]
+    out[3, p] = pressure - volume[p] * syy[p]
+    out[4, p] = -volume[p] * sxy[p]
+    return math.sqrt(u[p] * u[p] + v[p] * v[p]) + math.sqrt(max(grav, g) * h[p])
+
+
+@numba.njit(cache=True, inline="always")
+def running_bound(m, x):
     """Return the running max of ``|x|``, infinity after a NaN (no NaN passes unseen)."""
     a = abs(x)
     if a != a:
@@ -115,11 +129,7 @@ def transfer_bounds(basis, mass, u, v, forces, area,
     b = np.zeros(15)
     b[11:] = -np.inf
     for p in range(i0.size):
-        b[0] = _bound(b[0], mass[p])
-        b[1] = _bound(b[1], mass[p] * u[p])
-        b[2] = _bound(b[2], mass[p] * v[p])
-        for c in range(5):
-            b[3 + c] = _bound(b[3 + c], forces[c, p])
+        particle_bounds(b, p, mass, u, v, forces, area, volume)
         mx, my, mdx, mdy = 0.0, 0.0, 0.0, 0.0  # a bound of |dN| from the factors' maxima
         for a in range(3):  # (a NaN position is caught by the health check)
             mx, my = max(mx, abs(wx[p, a])), max(my, abs(wy[p, a]))
@@ -127,6 +137,19 @@ def transfer_bounds(basis, mass, u, v, forces, area,
         b[8] = max(b[8], mdx * my, mx * mdy)
         b[11], b[12] = max(b[11], -float(j0[p])), max(b[12], float(min(j0[p] + 2, ny)))
         b[13], b[14] = max(b[13], -float(i0[p])), max(b[14], float(min(i0[p] + 2, nx)))
-        b[9] = _bound(b[9], area[p])
-        b[10] = _bound(b[10], volume[p])
     return b
+
+
+@numba.njit(cache=True, inline="always")
+def particle_bounds(b, p, mass, u, v, forces, area, volume):
+    """Raise ``b``'s maxima of ``|m|, |m u|, |m v|``, the forces, ``|A|, |V|`` to particle ``p``'s.
+
+    Entries 0-7, 9 and 10 of :func:`transfer_bounds`.
+    """
+    b[0] = running_bound(b[0], mass[p])
+    b[1] = running_bound(b[1], mass[p] * u[p])
+    b[2] = running_bound(b[2], mass[p] * v[p])
+    for c in range(5):
+        b[3 + c] = running_bound(b[3 + c], forces[c, p])
+    b[9] = running_bound(b[9], area[p])
+    b[10] = running_bound(b[10], volume[p])

@@ -16,8 +16,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["P2G_COLUMNS", "deposit", "g2p_flip", "g2p_gradient", "gimp_interpolate",
-           "interpolate", "p2g", "p2g_momentum"]
+__all__ = ["P2G_COLUMNS", "deposit", "deposit_momentum", "deposit_node", "flip_gather",
+           "flip_set", "g2p_flip",
+           "g2p_gradient", "gimp_interpolate", "interpolate", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
@@ -30,6 +31,29 @@ def deposit(out, i, c, x, ext):
     out[i, c, 0] += hi
     x -= hi
     out[i, c, 1] += (x + ext[c, 1]) - ext[c, 1]
+
+
+@numba.njit(cache=True, inline="always")
+def deposit_momentum(out, i, p, w, rx, ry, mass, u, v, affine, ext):
+    """Deposit particle ``p``'s momentum ``m_p (v_p + C_p r) w`` at node ``i`` (columns 0, 1)."""
+    deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w, ext)
+    deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w, ext)
+
+
+@numba.njit(cache=True, inline="always")
+def deposit_node(out, i, p, w, gx, gy, rx, ry, mass, u, v, affine, body_x, body_y, sxx, syy,
+                 sxy, area, volume, ext):
+    """Deposit particle ``p``'s seven P2G columns at node ``i`` (seed eqs. 33-34).
+
+    Weight ``w``, gradient ``(gx, gy)``, ``r = x_i - x̄_p``; the order of :data:`P2G_COLUMNS`.
+    """
+    deposit(out, i, 0, mass[p] * w, ext)
+    deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w, ext)
+    deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w, ext)
+    deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
+    deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
+    deposit(out, i, 5, area[p] * w, ext)
+    deposit(out, i, 6, volume[p] * w, ext)
 
 
 @numba.njit(cache=True, inline="always")
@@ -99,15 +123,8 @@ def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy,
                 w = wx[p, a] * wy[p, b]
                 gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                deposit(out, i, 0, mass[p] * w, ext)
-                deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
-                         ext)
-                deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
-                         ext)
-                deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
-                deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
-                deposit(out, i, 5, area[p] * w, ext)
-                deposit(out, i, 6, volume[p] * w, ext)
+                deposit_node(out, i, p, w, gx, gy, rx, ry, mass, u, v, affine, body_x, body_y,
+                             sxx, syy, sxy, area, volume, ext)
     return out
 
 
@@ -131,10 +148,7 @@ def p2g_momentum(basis, mass, u, v, affine, box, ext):
                 rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
                 i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w,
-                         ext)
-                deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w,
-                         ext)
+                deposit_momentum(out, i, p, w, rx, ry, mass, u, v, affine, ext)
     return out
 
 
@@ -175,15 +189,25 @@ def g2p_flip(basis, vx, vy, old_x, old_y, stopped, pu, pv,
                     continue
                 w = wx[p, a] * wy[p, b]
                 i = node_index(i0[p], j0[p], a, b, nx, ny)
-                u += w * vx[i]
-                v += w * vy[i]
-                du += w * (vx[i] - old_x[i])
-                dv += w * (vy[i] - old_y[i])
-                near += w * stopped[i]
-        f = 0.0 if near > 0.0 else keep
-        u_out[p] = f * (pu[p] + du) + (1.0 - f) * u
-        v_out[p] = f * (pv[p] + dv) + (1.0 - f) * v
+                u, v, du, dv, near = flip_gather(u, v, du, dv, near, w, i, vx, vy, old_x,
+                                                 old_y, stopped)
+        flip_set(p, u, v, du, dv, near, keep, pu, pv, u_out, v_out)
     return u_out, v_out
+
+
+@numba.njit(cache=True, inline="always")
+def flip_gather(u, v, du, dv, near, w, i, vx, vy, old_x, old_y, stopped):
+    """Add node ``i`` (weight ``w``) to a particle's PIC velocity, FLIP change and stop weight."""
+    return (u + w * vx[i], v + w * vy[i], du + w * (vx[i] - old_x[i]),
+            dv + w * (vy[i] - old_y[i]), near + w * stopped[i])
+
+
+@numba.njit(cache=True, inline="always")
+def flip_set(p, u, v, du, dv, near, keep, pu, pv, u_out, v_out):
+    """Particle ``p``'s new velocity: FLIP share ``keep``, PIC next to stopped nodes."""
+    f = 0.0 if near > 0.0 else keep
+    u_out[p] = f * (pu[p] + du) + (1.0 - f) * u
+    v_out[p] = f * (pv[p] + dv) + (1.0 - f) * v
 
 
 @numba.njit(cache=True)

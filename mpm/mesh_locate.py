@@ -23,6 +23,9 @@ INSIDE = 1e-12
 MAX_WALK = 64
 #: Most Newton iterations of the inverse bilinear map.
 NEWTON = 20
+#: Newton stops after a step this small: it converges quadratically, so what remains is of
+#: the order of its square (1e-18 of a cell).
+NEWTON_STEP = 1e-9
 #: Most cells a particle domain reaches (4 around a regular vertex; up to 6 at a vertex
 #: with 5 or 6 cells).
 MAX_CELLS = 8
@@ -56,7 +59,7 @@ def _solve(geo, k, rx, ry, a, b):
         sb = (j00 * fy - j10 * fx) / det
         da -= sa
         db -= sb
-        if abs(sa) + abs(sb) <= 1e-12:
+        if abs(sa) + abs(sb) <= NEWTON_STEP:
             return a + da, b + db, True
     return a + da, b + db, False
 
@@ -217,7 +220,7 @@ def _breaks(lo, hi, out):
 
 @numba.njit(cache=True, inline="always")
 def _particle_domain(geo, origin, corners, neighbour, kind, k, x0, y0, lx, ly, px, py,
-                     nodes, N, dN, rel, seen, bx, by):
+                     nodes, N, dN, rel, seen, bx, by, mom):
     """Fill the scratch rows ``0 .. 4 n - 1`` of one particle; returns ``n`` (cells reached)."""
     if lx == 0.0 and ly == 0.0:
         _add(geo, corners, k, x0, y0, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
@@ -265,16 +268,70 @@ def _particle_domain(geo, origin, corners, neighbour, kind, k, x0, y0, lx, ly, p
                         continue
                     seen[slot] = m
                     n_seen += 1
-                    for q in range(4 * slot, 4 * slot + 4):
-                        N[0, q], dN[0, q, 0], dN[0, q, 1] = 0.0, 0.0, 0.0
-                _add(geo, corners, m, sa, sb, w, px, py, origin[m, 0] - origin[k, 0],
-                     origin[m, 1] - origin[k, 1], nodes, N, dN, rel, 0, 4 * slot)
+                    for c in range(8):
+                        mom[slot, c] = 0.0
+                _moments(geo, m, sa, sb, w, mom, slot)
                 total += w
-    for q in range(4 * n_seen):
-        N[0, q] /= total
-        dN[0, q, 0] /= total
-        dN[0, q, 1] /= total
+    for slot in range(n_seen):
+        m = seen[slot]
+        _from_moments(geo, corners, m, mom, slot, 1.0 / total, px,
+                      py, origin[m, 0] - origin[k, 0], origin[m, 1] - origin[k, 1], nodes, N,
+                      dN, rel)
     return n_seen
+
+
+@numba.njit(cache=True, inline="always")
+def _moments(geo, m, a, b, w, mom, slot):
+    """Add a Gauss point ``(a, b)`` of cell ``m`` with weight ``w`` to the slot's moments.
+
+    ``Σ w, Σ w a, Σ w b, Σ w a b`` and the same with ``w / det J``: the domain's ``Σ w N_c``
+    and ``Σ w ∇N_c`` are linear in them (:func:`_from_moments`), so a point costs eight
+    sums instead of twelve weights.
+    """
+    j00, j10, j01, j11 = tangents(geo, m, a, b)
+    o = w / (j00 * j11 - j01 * j10)
+    mom[slot, 0] += w
+    mom[slot, 1] += w * a
+    mom[slot, 2] += w * b
+    mom[slot, 3] += w * (a * b)
+    mom[slot, 4] += o
+    mom[slot, 5] += o * a
+    mom[slot, 6] += o * b
+    mom[slot, 7] += o * (a * b)
+
+
+@numba.njit(cache=True, inline="always")
+def _from_moments(geo, corners, m, mom, slot, scale, px, py, ox, oy, nodes, N, dN, rel):
+    """Write slot ``slot``'s four entries (cell ``m``) from its moments, times ``scale``.
+
+    ``N_c = Σ w N_c(a, b)`` with ``N_0 = (1-a)(1-b)``, …; ``∇N_c = J^{-T} ∇_ξ N_c`` with
+    ``∂_ξ N_c = α_c + β_c b``, ``∂_η N_c = γ_c + δ_c a`` and ``J`` linear in ``a, b``, so
+    ``Σ (w/det) adj(J) ∇_ξ N_c`` needs only ``Σ o, Σ o a, Σ o b, Σ o a b`` (``o = w/det``).
+    """
+    s0, sa, sb, sab = mom[slot, 0], mom[slot, 1], mom[slot, 2], mom[slot, 3]
+    w0, wa, wb, wab = mom[slot, 4], mom[slot, 5], mom[slot, 6], mom[slot, 7]
+    g0, g1, g2, g3, g4, g5 = geo[m, 0], geo[m, 1], geo[m, 2], geo[m, 3], geo[m, 4], geo[m, 5]
+    q0 = 4 * slot
+    N[0, q0] = scale * (s0 - sa - sb + sab)
+    N[0, q0 + 1] = scale * (sa - sab)
+    N[0, q0 + 2] = scale * (sb - sab)
+    N[0, q0 + 3] = scale * sab
+    for c in range(4):
+        al = -1.0 if c == 0 else (1.0 if c == 1 else 0.0)
+        be = 1.0 if (c == 0 or c == 3) else -1.0
+        ga = -1.0 if c == 0 else (1.0 if c == 2 else 0.0)
+        de = 1.0 if (c == 0 or c == 3) else -1.0
+        dN[0, q0 + c, 0] = scale * ((g3 * al - g1 * ga) * w0 + (g5 * al - g1 * de) * wa
+                                    + (g3 * be - g5 * ga) * wb + (g5 * be - g5 * de) * wab)
+        dN[0, q0 + c, 1] = scale * ((g0 * ga - g2 * al) * w0 + (g0 * de - g4 * al) * wa
+                                    + (g4 * ga - g2 * be) * wb + (g4 * de - g4 * be) * wab)
+        nodes[0, q0 + c] = corners[m, c]
+    bx, by = ox - px, oy - py
+    rel[0, q0, 0], rel[0, q0, 1] = bx, by
+    rel[0, q0 + 1, 0], rel[0, q0 + 1, 1] = g0 + bx, g1 + by
+    rel[0, q0 + 2, 0], rel[0, q0 + 2, 1] = g2 + bx, g3 + by
+    rel[0, q0 + 3, 0] = (g0 + g2 + g4) + bx
+    rel[0, q0 + 3, 1] = (g1 + g3 + g5) + by
 
 
 @numba.njit(cache=True)
@@ -299,8 +356,8 @@ def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, o
 
     The results go to ``offsets`` (n + 1) and the buffers ``nodes, S, dS, rel`` (kept by the
     caller: fresh arrays cost more in page faults than the computation): particle ``p``'s
-    entries are ``offsets[p] .. offsets[p + 1] - 1``, four per cell its domain reaches (at
-    most :data:`MAX_CELLS`).
+    entries are ``offsets[p] .. offsets[p + 1] - 1``, one per node its domain reaches (the
+    corners of at most :data:`MAX_CELLS` cells).
 
     Returns:
         The number of entries used, or -1 if the buffers are too short (call again with
@@ -313,6 +370,7 @@ def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, o
     snodes = np.empty((1, w), dtype=np.int64)
     sN, sdN, srel = np.zeros((1, w)), np.zeros((1, w, 2)), np.zeros((1, w, 2))
     seen = np.empty(MAX_CELLS, dtype=np.int64)
+    mom = np.empty((MAX_CELLS, 8))
     bx, by = np.empty(4), np.empty(4)
     for p in range(n):
         k = cell[p]
@@ -320,16 +378,26 @@ def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, o
         for q in range(4):
             sN[0, q], sdN[0, q, 0], sdN[0, q, 1] = 0.0, 0.0, 0.0
         used = 4 * _particle_domain(geo, origin, corners, neighbour, kind, k, xi[p], eta[p],
-                                    lx[p], ly[p], px, py, snodes, sN, sdN, srel, seen, bx, by)
+                                    lx[p], ly[p], px, py, snodes, sN, sdN, srel, seen, bx, by,
+                                    mom)
         start = offsets[p]
         if start + used > cap:
             return -1
+        count = 0  # a node reached from several cells gets one entry (9 around a vertex)
         for q in range(used):
-            nodes[start + q] = snodes[0, q]
-            S[start + q] = sN[0, q]
-            dS[start + q, 0], dS[start + q, 1] = sdN[0, q, 0], sdN[0, q, 1]
-            rel[start + q, 0], rel[start + q, 1] = srel[0, q, 0], srel[0, q, 1]
-        offsets[p + 1] = start + used
+            e = start
+            while e < start + count and nodes[e] != snodes[0, q]:
+                e += 1
+            if e == start + count:
+                nodes[e], S[e] = snodes[0, q], sN[0, q]
+                dS[e, 0], dS[e, 1] = sdN[0, q, 0], sdN[0, q, 1]
+                rel[e, 0], rel[e, 1] = srel[0, q, 0], srel[0, q, 1]
+                count += 1
+            else:
+                S[e] += sN[0, q]
+                dS[e, 0] += sdN[0, q, 0]
+                dS[e, 1] += sdN[0, q, 1]
+        offsets[p + 1] = start + count
     return offsets[n]
 
 

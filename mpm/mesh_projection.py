@@ -19,6 +19,8 @@ import basix
 import numba
 import numpy as np
 
+from mpm.projection import blend, node_cells
+
 __all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector", "element_masses"]
 
 #: Node rings added around the nodes with sums (the window of the projection).
@@ -41,25 +43,6 @@ def element_masses(cells: np.ndarray, coords: np.ndarray) -> np.ndarray:
     det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
     mass = np.einsum("cq,qi,qj->cij", wts[None, :] * np.abs(det), phi, phi)
     return 0.5 * (mass + mass.transpose(0, 2, 1))
-
-
-@numba.njit(cache=True)
-def _node_cells(cells, n_nodes):
-    """CSR node → cell adjacency ``(offsets, adj)``, each node's cells in cell order."""
-    offsets = np.zeros(n_nodes + 1, dtype=np.int64)
-    for c in range(cells.shape[0]):
-        for q in range(4):
-            offsets[cells[c, q] + 1] += 1
-    for a in range(n_nodes):
-        offsets[a + 1] += offsets[a]
-    fill = offsets[:-1].copy()
-    adj = np.empty(offsets[-1], dtype=np.int64)
-    for c in range(cells.shape[0]):
-        for q in range(4):
-            a = cells[c, q]
-            adj[fill[a]] = c
-            fill[a] += 1
-    return offsets, adj
 
 
 @numba.njit(cache=True)
@@ -171,77 +154,12 @@ def _pcg(ids, lc, emass, b, rtol, max_it):
     return x, its
 
 
-@numba.njit(cache=True, inline="always")
-def _add_antidiffusion(acc, lc, m, high, t, sign):
-    """``acc += sign f_K`` for window cell ``t``, ``f_K,q = Σ_s M_qs (h_q - h_s)``."""
-    for col in range(high.shape[1]):
-        h0, h1 = high[lc[t, 0], col], high[lc[t, 1], col]
-        h2, h3 = high[lc[t, 2], col], high[lc[t, 3], col]
-        for q in range(4):
-            hq = high[lc[t, q], col]
-            f = m[q, 0] * (hq - h0) + m[q, 1] * (hq - h1) + m[q, 2] * (hq - h2) + m[q, 3] * (
-                hq - h3)
-            acc[lc[t, q], col] += sign * f
-
-
 @numba.njit(cache=True)
-def _fct_blend(ids, lc, emass, low, high, mass, tol):
-    """:func:`mpm.projection._fct_blend` with cells found by node → cell adjacency."""
-    n, k = low.shape
-    offsets, adj = _node_cells(lc, n)
-    acc = np.zeros(low.shape)
-    for t in range(ids.size):
-        _add_antidiffusion(acc, lc, emass[ids[t]], high, t, 1.0)
-    alpha = np.ones(ids.size, dtype=np.bool_)
-    cand, n_cand = np.arange(n), n
-    seen = np.zeros(n, dtype=np.bool_)
-    bad = np.empty(n, dtype=np.int64)
-    passes = 0
-    while True:
-        passes += 1
-        n_bad = 0
-        for t in range(n_cand):
-            if low[cand[t], 0] + acc[cand[t], 0] / mass[cand[t]] < -tol:
-                bad[n_bad] = cand[t]
-                n_bad += 1
-        n_next = 0
-        for t in range(n_bad):
-            for e in range(offsets[bad[t]], offsets[bad[t] + 1]):
-                c = adj[e]
-                if not alpha[c]:
-                    continue
-                alpha[c] = False
-                _add_antidiffusion(acc, lc, emass[ids[c]], high, c, -1.0)
-                for q in range(4):
-                    if not seen[lc[c, q]]:
-                        seen[lc[c, q]] = True
-                        cand[n_next] = lc[c, q]
-                        n_next += 1
-        if n_next == 0:
-            break
-        for t in range(n_next):
-            seen[cand[t]] = False
-        n_cand = n_next
-    out = np.empty(low.shape)
-    for a in range(n):
-        for m in range(k):
-            out[a, m] = low[a, m] + acc[a, m] / mass[a]
-    return out, passes
-
-
-@numba.njit(cache=True)
-def _blend(sub, mass, ids, lc, emass, rtol, max_it):
+def _blend(sub, mass, ids, lc, emass, anti, rtol, max_it):
     """Project a window's sums: ``(h, FCT passes, CG iterations)``, ``h[:, 0] >= 0``."""
-    low = np.empty(sub.shape)
-    top = 0.0
-    for a in range(sub.shape[0]):
-        for m in range(sub.shape[1]):
-            low[a, m] = sub[a, m] / mass[a]
-        top = max(top, abs(low[a, 0]))
     high, its = _pcg(ids, lc, emass, sub, rtol, max_it)
-    res, passes = _fct_blend(ids, lc, emass, low, high, mass, 1e-13 * top)
-    for a in range(sub.shape[0]):
-        res[a, 0] = max(res[a, 0], 0.0)
+    offsets, adj = node_cells(lc, sub.shape[0])
+    res, passes = blend(sub, mass, high, lc, anti, ids, offsets, adj)
     return res, passes, its
 
 
@@ -266,7 +184,11 @@ class MeshProjector:
         self.element_mass = element_masses(self.cells, np.asarray(coords, dtype=float))
         self.lumped_mass = np.zeros(self.n_nodes)  # np.add.at adds in cell order
         np.add.at(self.lumped_mass, self.cells.ravel(), self.element_mass.sum(axis=2).ravel())
-        self._offsets, self._adj = _node_cells(self.cells, self.n_nodes)
+        self._offsets, self._adj = node_cells(self.cells, self.n_nodes)
+        # the element antidiffusion matrices M_L^K - M_C^K of the FCT blend
+        self._anti = -self.element_mass.copy()
+        rows = np.arange(4)
+        self._anti[:, rows, rows] += self.element_mass.sum(axis=2)
         self.iterations = 0
         self.solver_iterations = 0
 
@@ -325,7 +247,7 @@ class MeshProjector:
         """Projection of (n, k) sums on the window ``index``; sets the iteration counts."""
         ids, lc = self._window_cells(index)
         res, self.iterations, self.solver_iterations = _blend(
-            sub, self.lumped_mass[index], ids, lc, self.element_mass, CG_RTOL,
+            sub, self.lumped_mass[index], ids, lc, self.element_mass, self._anti, CG_RTOL,
             CG_MAX_ITERATIONS)
         return res
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["GridProjector", "tridiagonal_mass_solve"]
+__all__ = ["GridProjector", "blend", "fct_blend", "node_cells", "tridiagonal_mass_solve"]
 
 #: Element mass matrix of a rectangle over |K| (basix dof order (0,0), (1,0), (0,1), (1,1)).
 _MASS_REF = np.array([[4, 2, 2, 1], [2, 4, 1, 2], [2, 1, 4, 2], [1, 2, 2, 4]]) / 36.0
@@ -81,31 +81,51 @@ def _add_antidiffusion(acc, cells, matrix, high, c, sign):
 
 
 @numba.njit(cache=True)
-def _fct_blend(cells, matrix, low, high, mass, tol, wx):
+def node_cells(cells, n_nodes):
+    """CSR node → cell adjacency ``(offsets, adj)``, each node's cells in increasing order."""
+    offsets = np.zeros(n_nodes + 1, dtype=np.int64)
+    for c in range(cells.shape[0]):
+        for q in range(4):
+            offsets[cells[c, q] + 1] += 1
+    for a in range(n_nodes):
+        offsets[a + 1] += offsets[a]
+    fill = offsets[:-1].copy()
+    adj = np.empty(offsets[-1], dtype=np.int64)
+    for c in range(cells.shape[0]):
+        for q in range(4):
+            a = cells[c, q]
+            adj[fill[a]] = c
+            fill[a] += 1
+    return offsets, adj
+
+
+@numba.njit(cache=True)
+def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj):
     """``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``α_K = 0`` on cells touching a negative node.
 
     The element antidiffusion is ``f_K = (M_L^K - M_C^K) high``. A pass finds
     the nodes whose first column is below ``-tol`` and switches their cells off (their
     ``f_K`` subtracted again); the next pass looks only at the nodes of the cells it switched
-    off (no other node changed), so a pass costs only its cells.
+    off (no other node changed), so a pass costs only its cells. Used by both projectors.
 
     Args:
-        cells: (n_cells, 4) window cells (:func:`_grid_cells` of the window, row-major).
-        matrix: (4, 4) ``M_L^K - M_C^K``.
+        cells: (n_cells, 4) window-local nodes of the window's cells.
+        mats: (m, 4, 4) the matrices ``M_L^K - M_C^K``; cell ``c`` uses ``mats[ids[c]]``.
+        ids: (n_cells,) matrix of each cell.
         low: (n, k) low-order (lumped) projection.
         high: (n, k) high-order (consistent) projection.
         mass: (n,) lumped mass.
         tol: Depth below which a node is negative.
-        wx: Window width in nodes (cell ``(r, i)`` is ``r (wx - 1) + i``).
+        offsets: Node → cell adjacency of ``cells`` (:func:`node_cells`).
+        adj: Its cells.
 
     Returns:
         ``(h, passes)``: (n, k) blended fields and the number of passes.
     """
     n_cells, n, k = cells.shape[0], low.shape[0], low.shape[1]
-    wy = n // wx
     acc = np.zeros(low.shape)
     for c in range(n_cells):
-        _add_antidiffusion(acc, cells, matrix, high, c, 1.0)
+        _add_antidiffusion(acc, cells, mats[ids[c]], high, c, 1.0)
     alpha = np.ones(n_cells, dtype=np.bool_)
     cand, n_cand = np.arange(n), n
     seen = np.zeros(n, dtype=np.bool_)
@@ -121,20 +141,18 @@ def _fct_blend(cells, matrix, low, high, mass, tol, wx):
                 n_bad += 1
         n_next = 0
         for t in range(n_bad):
-            r, i = bad[t] // wx, bad[t] % wx
-            for cr in range(max(r - 1, 0), min(r, wy - 2) + 1):
-                for ci in range(max(i - 1, 0), min(i, wx - 2) + 1):
-                    c = cr * (wx - 1) + ci
-                    if not alpha[c]:
-                        continue
-                    alpha[c] = False
-                    _add_antidiffusion(acc, cells, matrix, high, c, -1.0)
-                    for q in range(4):
-                        node = cells[c, q]
-                        if not seen[node]:
-                            seen[node] = True
-                            cand[n_next] = node
-                            n_next += 1
+            for e in range(offsets[bad[t]], offsets[bad[t] + 1]):
+                c = adj[e]
+                if not alpha[c]:
+                    continue
+                alpha[c] = False
+                _add_antidiffusion(acc, cells, mats[ids[c]], high, c, -1.0)
+                for q in range(4):
+                    node = cells[c, q]
+                    if not seen[node]:
+                        seen[node] = True
+                        cand[n_next] = node
+                        n_next += 1
         if n_next == 0:
             break
         for t in range(n_next):
@@ -199,16 +217,27 @@ def _consistent(b, wy, wx, ends, area):
 
 
 @numba.njit(cache=True)
-def _blend(sub, mass, cells, matrix, wy, wx, ends, area):
+def _blend(sub, mass, cells, matrix, wy, wx, ends, area, offsets, adj):
     """Project a window's sums (module docstring): ``(h, passes)``, ``h[:, 0] >= 0``."""
+    high = _consistent(sub, wy, wx, ends, area)
+    ids = np.zeros(cells.shape[0], dtype=np.int64)
+    return blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj)
+
+
+@numba.njit(cache=True)
+def blend(sub, mass, high, cells, mats, ids, offsets, adj):
+    """Blend the lumped projection ``sub / mass`` with ``high`` (:func:`fct_blend`), ``h >= 0``.
+
+    Returns ``(h, passes)`` (the arguments as :func:`fct_blend`'s; negatives of round-off
+    size, below ``1e-13`` of the largest lumped depth, count as zero).
+    """
     low = np.empty(sub.shape)
     top = 0.0
     for a in range(sub.shape[0]):
         for m in range(sub.shape[1]):
             low[a, m] = sub[a, m] / mass[a]
         top = max(top, abs(low[a, 0]))
-    high = _consistent(sub, wy, wx, ends, area)
-    res, passes = _fct_blend(cells, matrix, low, high, mass, 1e-13 * top, wx)
+    res, passes = fct_blend(cells, mats, ids, low, high, mass, 1e-13 * top, offsets, adj)
     for a in range(sub.shape[0]):
         res[a, 0] = max(res[a, 0], 0.0)
     return res, passes
@@ -243,7 +272,7 @@ class GridProjector:
         np.add.at(lumped, self.cells.ravel(), 0.25 * self.area)
         self.lumped_mass = lumped
         self.iterations = 0
-        self._windows: dict[tuple[int, int, int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self._windows: dict[tuple[int, int, int, int], tuple[np.ndarray, ...]] = {}
 
     def consistent(self, b: np.ndarray, window: tuple[int, int, int, int] | None = None
                    ) -> np.ndarray:
@@ -274,7 +303,7 @@ class GridProjector:
         out = np.zeros_like(b)
         if window is None:
             return out
-        index, _ = self._window_arrays(window)
+        index = self._window_arrays(window)[0]
         out[index] = self._blend(np.ascontiguousarray(b[index], dtype=float), window)
         return out
 
@@ -294,17 +323,17 @@ class GridProjector:
         j0, j1, i0, i1 = window
         sub = np.zeros(((j1 - j0) * (i1 - i0), 1))
         sub[(j - j0) * (i1 - i0) + (i - i0), 0] = values
-        index, _ = self._window_arrays(window)
+        index = self._window_arrays(window)[0]
         return index, self._blend(sub, window)[:, 0]
 
     def _blend(self, sub: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
         """Projection of a window's sums (row-major, (n, k)); sets :attr:`iterations`."""
         ny1, nx1 = self.shape
         j0, j1, i0, i1 = window
-        index, cells = self._window_arrays(window)
+        index, cells, offsets, adj = self._window_arrays(window)
         ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
         res, self.iterations = _blend(sub, self.lumped_mass[index], cells, self.matrix,
-                                      j1 - j0, i1 - i0, ends, self.area)
+                                      j1 - j0, i1 - i0, ends, self.area, offsets, adj)
         return res
 
     def window(self, weights: np.ndarray) -> tuple[int, int, int, int] | None:
@@ -324,7 +353,7 @@ class GridProjector:
         return lo_j, hi_j, lo_i, hi_i
 
     def _window_arrays(self, window: tuple[int, int, int, int]) -> tuple[np.ndarray, ...]:
-        """Global node indices (row-major) and window-local cells of a window (cached)."""
+        """Global nodes (row-major), window-local cells and their node → cell adjacency."""
         if window not in self._windows:
             j0, j1, i0, i1 = window
             nx1 = self.shape[1]
@@ -332,7 +361,8 @@ class GridProjector:
             index = (jj * nx1 + ii).ravel()
             if len(self._windows) > 64:
                 self._windows.clear()
-            self._windows[window] = (index, _grid_cells(i1 - i0 - 1, j1 - j0 - 1))
+            cells = _grid_cells(i1 - i0 - 1, j1 - j0 - 1)
+            self._windows[window] = (index, cells, *node_cells(cells, index.size))
         return self._windows[window]
 
 
