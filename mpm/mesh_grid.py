@@ -20,7 +20,7 @@ A displacement is solved for in the cell's own frame, relative to the current po
 at rest keeps its exact ``(ξ, η)``, so the lake at rest stays exact); a particle that leaves the
 cell walks across the edge it leaves by (:func:`mpm.mesh_locate.walk`, the neighbour table),
 leaves the domain through an open edge, or stops on a wall edge. The weights at the particles
-are GIMP's domain averages (:func:`mpm.mesh_locate.domain_basis`); a particle's domain
+are GIMP's domain averages (:func:`mpm.mesh_weights.domain_basis`); a particle's domain
 half-widths ``l_x, l_y`` are along its cell's ξ and η axes.
 """
 
@@ -32,17 +32,11 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization, Side
 from fem_runout.quadmesh import EDGE_CORNERS, KIND_CODES
 from mpm.grid import Basis
-from mpm.mesh_locate import (
-    WALK_EDGES,
-    axis_rates,
-    axis_steps,
-    domain_basis,
-    jacobian_det,
-    point_basis,
-    walk,
-)
+from mpm.mesh_locate import WALK_EDGES, axis_rates, axis_steps, jacobian_det, walk
+from mpm.mesh_weights import domain_basis, point_basis
 
 __all__ = ["MeshBasis", "MeshParticleGrid"]
+
 
 def _canonical(corners: np.ndarray) -> np.ndarray:
     """Rotate/reflect each cell's corners: smallest node first, its smaller neighbour second."""
@@ -266,8 +260,8 @@ class MeshParticleGrid:
             self._offsets = np.empty(2 * n + 1, dtype=np.int64)
         while True:
             used = domain_basis(self.geo, self.origin, self.corners, self.neighbour,
-                                self.edge_kind, p.cell, p.xi, p.eta, p.lx, p.ly, self._offsets,
-                                *self._buffers)
+                                self.edge_kind, p.cell, p.xi, p.eta, p.lx, p.ly,
+                                self._offsets, *self._buffers)
             if used >= 0:
                 break
             size = 2 * max(self._buffers[0].size, 8 * n)
@@ -283,7 +277,7 @@ class MeshParticleGrid:
 
 
 class MeshBasis:
-    """Domain weights at the particles (:func:`mpm.mesh_locate.domain_basis`), kernel input."""
+    """Domain weights at the particles (:func:`mpm.mesh_weights.domain_basis`), kernel input."""
 
     def __init__(self, *arrays: np.ndarray) -> None:
         self.arrays = arrays

@@ -1,7 +1,7 @@
 """Particle ↔ grid transfers with the point Q1 basis on any quadrilateral mesh (issue 17).
 
 The same kernels as :mod:`mpm.kernels` and :mod:`mpm.forces` (same arguments, same returns,
-same arithmetic per node), for the weights of :func:`mpm.mesh_locate.domain_basis`: particle
+same arithmetic per node), for the weights of :func:`mpm.mesh_weights.domain_basis`: particle
 ``p`` has the entries ``off[p] .. off[p + 1] - 1``, each a global node, ``S_ip``, ``∇S_ip``
 and ``x_i - x_p`` (APIC's affine part), one entry per node the particle's domain reaches.
 A P2G box is a range of global node numbers ``box = (0, first, 1, count)``: the mesh

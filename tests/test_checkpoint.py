@@ -27,6 +27,7 @@ RUNS = {
     "bingham": ("cases/hemisphere_bingham.yaml", ["domain.cells=[30,30]", "time.end=0.6",
                                                    "output.every=0.3"]),
     "auto": ("cases/hard/pit.yaml", ["time.end=auto", "time.max=40", "output.every=3"]),
+    "msh": ("cases/curved_channel.yaml", ["time.end=0.9", "output.every=0.3"]),  # gmsh mesh
 }
 FINAL = ("h", "hu", "hv", "peak_depth", "peak_speed")
 SUMMARY = ("released_volume", "deposit_volume", "outflow_volume", "affected_area",
