@@ -17,7 +17,7 @@ import numpy as np
 
 from mpm.kernels import node_index
 
-__all__ = ["particle_bounds", "particle_force", "particle_forces", "running_bound",
+__all__ = ["bed_terms", "particle_bounds", "particle_force", "particle_forces", "running_bound",
            "transfer_bounds"]
 
 
@@ -62,19 +62,31 @@ def particle_forces(basis, z, hess, still, rho, g, volume, h,
                 if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
                     continue
                 i = node_index(i0[p], j0[p], a, b, nx, ny)
-                gx += dwx[p, a] * wy[p, b] * z[i]
-                gy += wx[p, a] * dwy[p, b] * z[i]
-                w = wx[p, a] * wy[p, b]
-                if slope_form:
-                    hxx += w * hess[i, 0]
-                    hxy += w * hess[i, 1]
-                    hyy += w * hess[i, 2]
-                if wb:
-                    big += w * still[i]
+                gx, gy, hxx, hxy, hyy, big = bed_terms(
+                    gx, gy, hxx, hxy, hyy, big, wx[p, a] * wy[p, b], dwx[p, a] * wy[p, b],
+                    wx[p, a] * dwy[p, b], i, z, hess, still, slope_form, wb)
         slope = max(slope, gx * gx + gy * gy)  # squared: one sqrt at the end
         speed = max(speed, particle_force(p, gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g,
                                           volume, h, u, v, sxx, syy, sxy, out, gp))
     return out, gp, math.sqrt(slope), speed
+
+
+@numba.njit(cache=True, inline="always")
+def bed_terms(gx, gy, hxx, hxy, hyy, big, w, wx, wy, i, z, hess, still, slope_form, wb):
+    """Add node ``i`` to a particle's bed gradient, Hessian and still-water depth.
+
+    ``w``: the node's weight, ``(wx, wy)``: its gradient. Returns the six sums (the Hessian
+    only in the slope form, ``H`` only with a still-water level).
+    """
+    gx += wx * z[i]
+    gy += wy * z[i]
+    if slope_form:
+        hxx += w * hess[i, 0]
+        hxy += w * hess[i, 1]
+        hyy += w * hess[i, 2]
+    if wb:
+        big += w * still[i]
+    return gx, gy, hxx, hxy, hyy, big
 
 
 @numba.njit(cache=True, inline="always")

@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 __all__ = ["P2G_COLUMNS", "deposit", "deposit_momentum", "deposit_node", "flip_gather",
-           "flip_set", "g2p_flip",
+           "flip_set", "g2p_flip", "gradient_terms",
            "g2p_gradient", "gimp_interpolate", "interpolate", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
@@ -54,6 +54,12 @@ def deposit_node(out, i, p, w, gx, gy, rx, ry, mass, u, v, affine, body_x, body_
     deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
     deposit(out, i, 5, area[p] * w, ext)
     deposit(out, i, 6, volume[p] * w, ext)
+
+
+@numba.njit(cache=True, inline="always")
+def gradient_terms(g00, g01, g10, g11, i, vx, vy, gx, gy):
+    """Add node ``i``'s velocity times its weight gradient ``(gx, gy)`` to ``∇v`` at a particle."""
+    return g00 + vx[i] * gx, g01 + vx[i] * gy, g10 + vy[i] * gx, g11 + vy[i] * gy
 
 
 @numba.njit(cache=True, inline="always")
@@ -224,12 +230,9 @@ def g2p_gradient(basis, vx, vy):
             for a in range(3):
                 if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
                     continue
-                gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
-                i = node_index(i0[p], j0[p], a, b, nx, ny)
-                g00 += vx[i] * gx
-                g01 += vx[i] * gy
-                g10 += vy[i] * gx
-                g11 += vy[i] * gy
+                g00, g01, g10, g11 = gradient_terms(
+                    g00, g01, g10, g11, node_index(i0[p], j0[p], a, b, nx, ny), vx, vy,
+                    dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b])
         grad[p, 0, 0], grad[p, 0, 1], grad[p, 1, 0], grad[p, 1, 1] = g00, g01, g10, g11
     return grad
 

@@ -15,8 +15,8 @@ import math
 import numba
 import numpy as np
 
-from mpm.forces import particle_bounds, particle_force
-from mpm.kernels import deposit_momentum, deposit_node, flip_gather, flip_set
+from mpm.forces import bed_terms, particle_bounds, particle_force
+from mpm.kernels import deposit_momentum, deposit_node, flip_gather, flip_set, gradient_terms
 
 __all__ = ["g2p_flip", "g2p_gradient", "interpolate", "p2g", "p2g_momentum",
            "particle_forces", "transfer_bounds"]
@@ -74,12 +74,8 @@ def g2p_gradient(basis, vx, vy):
     for p in range(n):
         g00, g01, g10, g11 = 0.0, 0.0, 0.0, 0.0
         for a in range(off[p], off[p + 1]):
-            i = nodes[a]
-            gx, gy = dN[a, 0], dN[a, 1]
-            g00 += vx[i] * gx
-            g01 += vx[i] * gy
-            g10 += vy[i] * gx
-            g11 += vy[i] * gy
+            g00, g01, g10, g11 = gradient_terms(g00, g01, g10, g11, nodes[a], vx, vy, dN[a, 0],
+                                                dN[a, 1])
         grad[p, 0, 0], grad[p, 0, 1], grad[p, 1, 0], grad[p, 1, 1] = g00, g01, g10, g11
     return grad
 
@@ -110,16 +106,9 @@ def particle_forces(basis, z, hess, still, rho, g, volume, h, u, v, sxx, syy, sx
     for p in range(n):
         gx, gy, hxx, hxy, hyy, big = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         for a in range(off[p], off[p + 1]):
-            i = nodes[a]
-            w = N[a]
-            gx += dN[a, 0] * z[i]
-            gy += dN[a, 1] * z[i]
-            if slope_form:
-                hxx += w * hess[i, 0]
-                hxy += w * hess[i, 1]
-                hyy += w * hess[i, 2]
-            if wb:
-                big += w * still[i]
+            gx, gy, hxx, hxy, hyy, big = bed_terms(gx, gy, hxx, hxy, hyy, big, N[a], dN[a, 0],
+                                                   dN[a, 1], nodes[a], z, hess, still,
+                                                   slope_form, wb)
         slope = max(slope, gx * gx + gy * gy)
         speed = max(speed, particle_force(p, gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g,
                                           volume, h, u, v, sxx, syy, sxy, out, gp))
