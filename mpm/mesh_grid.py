@@ -88,8 +88,10 @@ class MeshParticleGrid:
         self.min_size = float(disc.min_cell_size)
         edge = self.coords[self.corners[:, WALK_EDGES[:, 1]]] - self.coords[
             self.corners[:, WALK_EDGES[:, 0]]]
-        #: longest edge: the reach of a particle's nodes (APIC bounds)
-        self.dx = self.dy = float(np.sqrt((edge**2).sum(axis=-1)).max())
+        # the reach of a particle's nodes for APIC's bounds (``2 Δx`` in
+        # Particles.transfer_speeds): half a domain's diagonal (<= 0.71 of the longest edge)
+        # plus a cell's diagonal (<= 2 edges) is below 3 longest edges, so Δx = 1.5 of it
+        self.dx = self.dy = 1.5 * float(np.sqrt((edge**2).sum(axis=-1)).max())
         # the cells' lengths along their ξ and η axes at the centre (Δx, Δy on a grid)
         g = self.geo
         self.extent = np.column_stack([np.hypot(g[:, 0] + 0.5 * g[:, 4], g[:, 1] + 0.5 * g[:, 5]),
