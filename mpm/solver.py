@@ -5,9 +5,10 @@ previous step):
 
 1. nodal mass, momentum and force (P2G, seed eqs. 33-34, lumped ``M_i``), nodal acceleration
    and velocity (eqs. 35-37) ``v_i^* = (p_i + Δt f_i)/M_i``;
-2. bed friction (eq. 2) implicit per node on ``v^*`` with the nodal depth
-   ``h_i = M_i/(ρ Σ_p A_p N_i)`` (the same exact Coulomb yield test as TG2's D step);
-   zero normal velocity on walls;
+2. bed friction (eq. 2) per node with the nodal depth ``h_i = M_i/(ρ Σ_p A_p N_i)``,
+   Strang-split around the forces: half of ``Δt f_i``, the friction over ``Δt`` (two
+   implicit stages, the same exact Coulomb yield test as TG2's D step), the other half
+   (:func:`mpm.nodal.friction_step`); zero normal velocity on walls;
 3. G2P (eq. 38) ``v_p = Σ_i v_i N_i(x_p)``; the velocity gradient ``L_p`` of eq. 40 is taken
    from the nodal velocity re-mapped from the updated particles (MUSL, Sulsky et al. 1995):
    eq. 37's ``(p_i + Δt f_i)/M_i`` is unbounded at nodes with little mass, and its gradient
@@ -47,6 +48,7 @@ from mpm.nodal import (
     GridSums,
     NodalGrid,
     NodeBuffers,
+    friction_step,
     no_faster_than,
     open_side_push,
     zero_wall_velocity,
@@ -279,16 +281,17 @@ class MPMSolver:
         g = sums.g
         mass = g[:, 0]
         fx, fy = self._open_side_pressure(g[:, 3], g[:, 4])
-        vx, vy = (g[:, 1] + dt * fx) / mass, (g[:, 2] + dt * fy) / mass
+        if self.friction is None:
+            vx, vy = (g[:, 1] + dt * fx) / mass, (g[:, 2] + dt * fy) / mass
+            self._zero_walls(vx, vy)
+            return self._put("vx", sums, vx), self._put("vy", sums, vy)
+        ax, ay = 0.5 * dt * fx / mass, 0.5 * dt * fy / mass
+        vx, vy = g[:, 1] / mass + ax, g[:, 2] / mass + ay
         self._zero_walls(vx, vy)  # the wall reaction first: friction acts along it
-        if self.friction is not None:
-            area = g[:, 5]  # > 0 wherever mass is, unless the particles' areas underflow
-            h = np.where(area > 0.0, mass / (self.rho * np.where(area > 0.0, area, 1.0)), 0.0)
-            bed = None if self.slope_g is None else self.slope_g.take(sums.act).frame(vx, vy)
-            qx, qy = self.friction.implicit_update(h, h * g[:, 1] / mass, h * g[:, 2] / mass,
-                                                   h * vx, h * vy, dt, bed)
-            hs = np.where(h > 0, h, 1.0)
-            vx, vy = np.where(h > 0, qx / hs, 0.0), np.where(h > 0, qy / hs, 0.0)
+        area = g[:, 5]  # > 0 wherever mass is, unless the particles' areas underflow
+        h = np.where(area > 0.0, mass / (self.rho * np.where(area > 0.0, area, 1.0)), 0.0)
+        bed = None if self.slope_g is None else self.slope_g.take(sums.act).frame(vx, vy)
+        vx, vy = friction_step(self.friction, h, vx, vy, ax, ay, dt, bed, self._zero_walls)
         return self._put("vx", sums, vx), self._put("vy", sums, vy)
 
     def _zero_walls(self, vx: np.ndarray, vy: np.ndarray) -> None:

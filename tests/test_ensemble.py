@@ -203,3 +203,16 @@ def test_ensemble_report_row_has_the_quantiles(tmp_path):
     assert cells[4] == "1010 / 1050 / 1090"  # P10 / P50 / P90 of 1000 ... 1100
     assert cells[5] == "1.0 / 5.0 / 9.0"  # 1e4 k m² = k ha
     assert lines == ["- DAMPM: Spearman correlation of the run-out with `x` -0.50"]
+
+
+def test_histograms_of_members_equal_to_round_off(tmp_path):
+    """Members equal but for the last bits (64 m and 64 − 4e-14 m) still get their histograms."""
+    from fem_runout.ensemble.pictures import draw_histograms, histogram_range
+
+    keys = ("runout_length", "travel_angle_deg", "affected_area", "deposit_volume")
+    records = [{"summary": dict.fromkeys(keys, v)} for v in (64.0, 64.0, 64.0 - 4e-14, 64.0)]
+    draw_histograms(records, tmp_path / "d.png")
+    assert (tmp_path / "d.png").stat().st_size > 0
+    lo, hi = histogram_range(np.array([64.0, 64.0 - 4e-14]))
+    assert lo == pytest.approx(63.68) and hi == pytest.approx(64.32)
+    assert histogram_range(np.array([1.0, 2.0])) is None  # a real spread keeps numpy's own range

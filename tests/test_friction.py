@@ -295,3 +295,53 @@ def test_only_wet_nodes_are_solved_and_the_bits_do_not_change(law):
         one = law.implicit_update(h[i:i + 1], sx[i:i + 1], sy[i:i + 1], sx[i:i + 1],
                                   sy[i:i + 1], 0.05)
         assert one[0][0] == qx[i] and one[1][0] == qy[i]
+
+
+# -- the step integrator (FrictionLaw.integrate, Alexander's SDIRK) ---------------------------
+def test_integrate_is_exact_for_coulomb_stop_and_deceleration():
+    """Constant deceleration g μ: stop iff |q| <= dt g μ h, else |q| - dt g μ h, direction kept."""
+    law = Coulomb(mu=0.3, gravity=G)
+    dt, h = 0.1, np.full(7, 2.0)
+    cap = dt * G * 0.3 * 2.0
+    mag = cap * np.array([0.0, 0.3, 0.707, 0.8, 1.0, 1.2, 5.0])
+    direction = np.array([0.6, -0.8])
+    qx, qy = law.integrate(h, mag * direction[0], mag * direction[1], dt)
+    expect = np.maximum(mag - cap, 0.0)
+    assert np.allclose(np.hypot(qx, qy), expect, rtol=0, atol=1e-13 * cap)
+    moving = expect > 0
+    assert np.allclose(qx[moving] / np.hypot(qx, qy)[moving], 0.6, atol=1e-14)
+    assert np.all(qx[~moving] == 0.0) and np.all(qy[~moving] == 0.0)
+
+
+def test_integrate_is_second_order_for_the_drag():
+    """Voellmy drag alone: du/dt = -g u²/(ξ h), u = u0/(1 + g u0 t/(ξ h)); order 2 over a run."""
+    xi, h, u0, end = 200.0, 0.5, 20.0, 4.0
+    law = Voellmy(0.0, xi, G)
+    exact = u0 / (1.0 + G * u0 * end / (xi * h))
+    errors = []
+    for n in (10, 20, 40, 80):
+        q = np.array([h * u0])
+        for _ in range(n):
+            q, _ = law.integrate(np.array([h]), q, 0 * q, end / n)
+        errors.append(abs(q[0] / h - exact) / exact)
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(orders > 1.9), orders
+    assert errors[0] < 0.1 * abs(_backward_euler_error(law, h, u0, end, 10, exact))
+
+
+def _backward_euler_error(law, h, u0, end, n, exact):
+    q = np.array([h * u0])
+    for _ in range(n):
+        q, _ = law.implicit_update(np.array([h]), q, 0 * q, q, 0 * q, end / n)
+    return (q[0] / h - exact) / exact
+
+
+def test_integrate_is_continuous_at_the_stop():
+    """Around the Coulomb stop (|q| = dt g μ h) the result is continuous: no jump at the switch."""
+    law = Voellmy(0.2, 500.0, G)
+    dt, h = 0.05, np.array([1.0])
+    cap = dt * G * 0.2
+    qs = cap * (1.0 + np.linspace(-1e-3, 1e-3, 201))
+    out = np.array([law.integrate(h, np.array([q]), np.array([0.0]), dt)[0][0] for q in qs])
+    assert np.all(np.abs(np.diff(out)) <= 2.0 * np.diff(qs).max())
+    assert np.all(out >= 0.0) and np.all(np.diff(out) >= 0.0)

@@ -70,12 +70,14 @@ def test_shear_decay_rate_formula():
 def test_thacker_second_order_away_from_the_wet_dry_line(method):
     """L1 inside 0.2 m of the wet/dry line, 20-80 cells.
 
-    TG2-PC 2.1e-2, 4.8e-3, 1.4e-3 (orders 2.13, 1.74); DAMPM 3.4e-3, 6.4e-4, 3.2e-4 (orders
-    2.4, 1.0: first order claimed for the particle method only).
+    TG2-PC 1.85e-2, 4.7e-3, 1.44e-3 (orders 1.99, 1.70); DAMPM 3.4e-3, 6.4e-4, 3.2e-4 (orders
+    2.4, 1.0: first order claimed for the particle method only). Issue 13 asks TG2-PC to stay
+    within 10 % of its error before the issue (1.362e-3 at 80 cells); without the shoreline's
+    relaxed depth bound (``limiter.SHORE_SLACK``) it was 1.67e-3.
     """
     levels, errors, ords = _ladder(ladders.thacker, (20, 40, 80), method)
     assert errors[0] > errors[1] > errors[2]
-    assert errors[-1] < 2e-3
+    assert errors[-1] < (1.1 * 1.362e-3 if method == "tg2" else 2e-3)
     assert min(ords) > (1.6 if method == "tg2" else 0.8)
     assert levels[-1].extra["full_l1"] < 5e-3  # whole domain, wet/dry line included
 
@@ -107,9 +109,15 @@ def test_ritter_converges_first_order(method):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_voellmy_sheet_speed(method):
-    """TG2-PC: relative speed error 4.1e-2 at dx = 8 m, 5.9e-3 at dx = 1 m."""
+    """Relative speed error at dx = 1 m below 1e-4: a second-order friction step.
+
+    The sheet has no gradients, so its error is the time integration of the friction ODE
+    (``FrictionLaw.integrate`` inside Strang's splitting). With one backward-Euler solve per
+    step it was first order: 5.8e-3 (TG2-PC, Strang, 300 steps) and 1.7e-4 (DAMPM, Lie, 400
+    steps), which the ODE alone reproduces (3.6e-3, 1.7e-4 at 400 steps); now 1.7e-6 and 8.7e-7.
+    """
     _, errors, _ = _ladder(ladders.voellmy_sheet, (50, 400), method)
-    assert errors[1] < errors[0] and errors[1] < 1e-2
+    assert errors[1] < errors[0] and errors[1] < 1e-4
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -9,7 +9,7 @@ import numpy as np
 
 from fem_runout.output.hazard import GridTarget
 
-__all__ = ["draw_products"]
+__all__ = ["draw_histograms", "draw_products", "histogram_range"]
 
 _HISTOGRAMS = (("runout_length", "run-out [m]", 1.0), ("travel_angle_deg", "travel angle [°]", 1.0),
                ("affected_area", "affected area [ha]", 1e-4),
@@ -49,18 +49,38 @@ def _panels(maps: dict[str, np.ndarray], names: list[str], target: GridTarget, p
     plt.close(fig)
 
 
-def _histograms(records: list[dict[str, Any]], path: Path) -> None:
+def draw_histograms(records: list[dict[str, Any]], path: Path) -> None:
+    """Draw the members' run-out, travel angle, area and deposit histograms to ``path``."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(_HISTOGRAMS), figsize=(3.3 * len(_HISTOGRAMS), 3))
     for ax, (key, label, scale) in zip(axes, _HISTOGRAMS, strict=True):
         values = np.array([r["summary"][key] for r in records], dtype=float) * scale
-        ax.hist(values, bins=max(5, int(np.sqrt(len(values)))), color="tab:blue")
+        ax.hist(values, bins=max(5, int(np.sqrt(len(values)))), range=histogram_range(values),
+                color="tab:blue")
         ax.set_xlabel(label)
     axes[0].set_ylabel("members")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def histogram_range(values: np.ndarray) -> tuple[float, float] | None:
+    """Return the histogram's range: the data's, widened where members agree to round-off.
+
+    numpy cannot cut 5 bins out of a range of a few ulps (members equal but for the last
+    bits, e.g. a run-out of 64 m summed in another order); such a range is centred in ±0.5
+    % of the value (±0.5 at 0), as numpy does for an exactly constant sample.
+    """
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return None
+    lo, hi = float(finite.min()), float(finite.max())
+    half = 0.005 * max(abs(lo), abs(hi)) or 0.5
+    if hi - lo > 1e-9 * 2.0 * half:
+        return None
+    mid = 0.5 * (lo + hi)
+    return mid - half, mid + half
 
 
 def _sensitivity(sens: dict[str, dict[str, float]], path: Path) -> None:
@@ -95,6 +115,6 @@ def draw_products(maps: dict[str, np.ndarray], target: GridTarget,
                 "probability of reaching the threshold", 1.0)
     names = [k for k in maps if k.startswith("peak_depth_")]
     _panels(maps, names, target, out / "peak_depth_percentiles.png", "peak depth [m]", None)
-    _histograms(records, out / "distributions.png")
+    draw_histograms(records, out / "distributions.png")
     if sens:
         _sensitivity(sens, out / "sensitivity.png")

@@ -19,7 +19,8 @@ With ``h_min,K``, ``h_min,K ∂u_j/∂q_j <= 2`` and the Gershgorin bound below 
 
 With a rheology, ``F_D`` is integrated by the IMEX-RKC of eq. 17 (coefficients eq. 19, stages
 eq. 18) with ``σ_J`` from Gershgorin's theorem on the lumped operator; the friction, if any, is
-then applied implicitly over the whole step, node by node (eq. 20, semi-smooth Newton). Without
+then integrated over the whole step, node by node, by two implicit stages of eq. 20's
+semi-smooth Newton (:meth:`FrictionLaw.integrate`, second order). Without
 a rheology only the friction update runs. See :meth:`DiffusionReaction.step` for why the
 friction is not inside the RKC stages.
 """
@@ -137,11 +138,11 @@ class DiffusionReaction:
 
         The rheology is integrated by the IMEX-RKC of eq. 17 with the friction as its implicit
         reaction only when there is no friction to stop flows; otherwise the RKC handles the
-        stress and the friction is solved afterwards, implicitly over the whole ``dt``
-        (θ = dt in ``q - θ r(q) = q*``). Inside eq. 17 each stage solves with θ = μ̃₁ dt, which
-        for m >= 4 stages is so small that Coulomb friction no longer stops a flow exactly
-        (tests/test_rkc.py); over the full step the Coulomb yield test is exact, so a
-        decelerating flow stops and stays stopped.
+        stress and the friction is integrated afterwards over the whole ``dt`` by two implicit
+        stages (:meth:`FrictionLaw.integrate`: second order, exact Coulomb stop). Inside eq. 17
+        each stage solves with θ = μ̃₁ dt, which for m >= 4 stages is so small that Coulomb
+        friction no longer stops a flow exactly (tests/test_rkc.py); over the full step the
+        Coulomb yield test is exact, so a decelerating flow stops and stays stopped.
 
         Args:
             q: (n, 2) momenta at the local nodes ``nodes`` (all of them with a rheology).
@@ -157,8 +158,7 @@ class DiffusionReaction:
                               lambda w: np.zeros_like(w))
             self.last_stages = self.rkc.last_stages
         if self.friction is not None:
-            qx, qy = self.friction.implicit_update(h, q[:, 0], q[:, 1], q[:, 0], q[:, 1], dt,
-                                                   self.bed(q, nodes))
+            qx, qy = self.friction.integrate(h, q[:, 0], q[:, 1], dt, self.bed(q, nodes))
             q = np.stack([qx, qy], axis=1)
         return q
 

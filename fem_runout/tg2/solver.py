@@ -7,6 +7,7 @@ from mpi4py import MPI
 
 from fem_runout.config import Case
 from fem_runout.mesh import Discretization, zero_wall_normal
+from fem_runout.physics.friction.base import spend_capacity
 from fem_runout.problem import build_problem
 from fem_runout.tg2.diffusion import DiffusionReaction
 from fem_runout.tg2.transport import Transport
@@ -92,9 +93,7 @@ class TG2Solver:
             remaining -= sub
         if rest is not None:  # nodes off the set were dry before and after (CFL <= 1)
             state = self._state(nodes)
-            norm = np.hypot(state[:, 1], state[:, 2])
-            keep = np.where(norm > rest, 1.0 - rest / np.where(norm > 0.0, norm, 1.0), 0.0)
-            state[:, 1:] *= keep[:, None]
+            state[:, 1], state[:, 2] = spend_capacity(state[:, 1], state[:, 2], rest)
             self._set_state(nodes, state)
 
     def _state(self, nodes: np.ndarray | None) -> np.ndarray:
@@ -112,23 +111,19 @@ class TG2Solver:
 
     def _unused_capacity(self, state: np.ndarray, dt: float,
                          nodes: np.ndarray | None) -> np.ndarray | None:
-        """Coulomb capacity left after D, ``max(0, dt g μ h - |q|)``, per node (or None).
+        """Coulomb capacity D leaves, per node (:meth:`FrictionLaw.unused_capacity`), or None.
 
         Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step that gives a layer
-        at rest on a slope the impulse ``g S h dt/2``. D has the whole step's Coulomb
-        capacity ``dt g μ h`` and used ``|q|`` of it to stop the node; what is left holds
-        the second half's impulse: ``q ← q max(0, 1 - rest/|q|)`` after it, the yield test
-        of the friction law itself. Giving the second half its own full capacity
+        at rest on a slope the impulse ``g S h dt/2``; what D's capacity ``dt g μ h`` has left
+        after stopping the node holds it. Giving the second half its own full capacity
         ``dt/2 g μ h`` instead stopped a decelerating sheet up to a quarter step early
-        (Coulomb stop test). A projection with no mask: moving nodes have ``rest = 0``.
-        ``state`` holds the rows of ``nodes`` (None: every local node).
+        (Coulomb stop test). ``state`` holds the rows of ``nodes`` (None: every local node).
         """
         friction = self.reaction.friction if self.reaction is not None else None
-        if friction is None or not friction.has_yield:
+        if friction is None:
             return None
-        cap = friction.yield_impulse(state[:, 0], state[:, 1], state[:, 2], dt,
-                                     self.reaction.bed(state[:, 1:], nodes))
-        return np.maximum(cap - np.hypot(state[:, 1], state[:, 2]), 0.0)
+        return friction.unused_capacity(state[:, 0], state[:, 1], state[:, 2], dt,
+                                        self.reaction.bed(state[:, 1:], nodes))
 
     def snapshot(self) -> tuple[np.ndarray, float]:
         """Copy the state, to restore the last good step."""
