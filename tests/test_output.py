@@ -236,3 +236,19 @@ def test_render_depth_grey_where_dry(tmp_path):
     h = np.where(g[0] < 2.0, 1.0, 0.0)
     out = render_depth(*g, 0.1 * g[1], h, NX, NY, tmp_path / "d.png", THRESHOLD)
     assert out is not None and out.stat().st_size > 10_000
+
+
+def test_render_depth_leaves_out_what_lies_outside_a_mesh(tmp_path):
+    """A mesh sampled on a raster has NaN bed outside its outline: those cells are not drawn."""
+    import pyvista
+
+    g = GRID_X.ravel(), GRID_Y.ravel()
+    z = np.where(g[0] + g[1] <= 4.0, 0.1 * g[1], np.nan)  # a triangle of the rectangle
+    h = np.where(g[0] < 2.0, 1.0, 0.0)
+    out = render_depth(*g, z, h, NX, NY, tmp_path / "d.png", THRESHOLD)
+    assert out is not None and out.stat().st_size > 10_000
+    assert png_colours(out) > 50
+    full = render_depth(*g, 0.1 * g[1], h, NX, NY, tmp_path / "f.png", THRESHOLD)
+    img, whole = (np.asarray(pyvista.read(str(p)).active_scalars) for p in (out, full))
+    assert img.shape == whole.shape
+    assert not np.array_equal(img, whole)  # the cut-off part is background, not terrain

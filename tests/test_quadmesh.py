@@ -98,7 +98,8 @@ def test_hazard_maps_on_a_mesh(tmp_path):
              f"output.dir={tmp_path / 'mesh'}", "output.pictures=true")
     with on_mesh(0.0):
         mesh = run(c, write=True, comm=COMM, overwrite=True)
-    assert (tmp_path / "mesh" / "hazard_map.png").stat().st_size > 10_000  # drawn
+    for png in ("hazard_map.png", "depth.png", "peak_depth.png"):  # drawn, also on a mesh
+        assert (tmp_path / "mesh" / png).stat().st_size > 10_000, png
     for key in ("affected_area", "runout_length", "peak_depth_max", "deposit_volume"):
         a, b = grid.summary[key], mesh.summary[key]
         assert abs(a - b) <= 1e-9 * max(1.0, abs(a)), key

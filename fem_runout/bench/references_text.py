@@ -50,7 +50,8 @@ REFERENCES = {
         "g u²/(ξ h), so u = sqrt(a/b) tanh(sqrt(a b) t), a = g (S − μ), b = g/(ξ h), terminal "
         "speed sqrt(ξ h (S − μ)) = 10 m/s. Measured at 3 relaxation times (u = 0.995 u_∞) on "
         "the part of the 400 m strip that the boundaries have not yet reached. The solution is "
-        "uniform in space: this measures the time integration (the step is ∝ dx)."),
+        "uniform in space: this measures the time integration (the step is ∝ dx), second order "
+        "with the friction step of session 16 (`FrictionLaw.integrate`)."),
     "manning_sheet": (
         "Reference (`fem_runout/references/manning_sheet.py`; Manning's formula): a uniform "
         "layer with Manning friction (`law: manning`, bed shear g n² |v| v/h^(1/3) on the "
@@ -129,8 +130,10 @@ well-balancing; both pass every hard case.
 - Problems with a dry front are first order, as they must be for any scheme: Ritter
   {ritter_orders}, the Coulomb incline (Mangeney) {mangeney_orders}; on the incline the front
   lags the exact tip by about 1.8 m of 38.4 m at every level (the last 1e-3 m of the thin tip).
-- The Voellmy sheet's speed is within {voellmy_last:.2%} of the exact tanh law at dx = 1 m; the
-  error does not decrease monotonically (it is a time-integration error, dt ∝ dx).
+- The Voellmy sheet's speed is within {voellmy_last:.1e} (relative) of the exact tanh law at
+  dx = 1 m, converging at second order: the friction is integrated at second order inside
+  Strang's splitting (`FrictionLaw.integrate`, session 16; with one backward-Euler solve the
+  error was first order, 5.8e-3 at dx = 1 m).
 - Lake at rest with the full seed material: exactly 0 at every level (the paper: 1e-13 to
   1e-14). Hemisphere: the front radius is the same along x, y and −x to the bit, and the
   diagonal agrees within a fraction of a cell; the radius (about 14.7 m) is larger than the paper's
@@ -142,8 +145,9 @@ well-balancing; both pass every hard case.
 
 **Slope-consistent form (issue 14; `model.form: slope`, the default with a DEM).** Both
 methods converge to the three exact references of the form (tables above): the Voellmy sheet
-on 35° to the terminal-speed law U∞ = sqrt(ξ h_n (sinθ − μ cosθ)) (TG2-PC first order — the
-same time-integration error as on the seed's sheet —, DAMPM within 5e-4); the Coulomb block
+on 35° to the terminal-speed law U∞ = sqrt(ξ h_n (sinθ − μ cosθ)) (both within 4e-5 from
+200 cells on, TG2-PC at second order; first order before session 16's second-order friction
+step); the Coulomb block
 from 35° onto a flat run-out to the energy line tan α = μ; Mangeney's dam break on 30° to the
 exact solution of the slope form (first order, dry front). The front columns of the last
 table give the slope form's exact tip along the slope beside Savage–Hutter's: the slope form
@@ -158,8 +162,8 @@ the synchronized limiter TG2-PC's energy-line error grew under refinement (6 %, 
   on the last two; DAMPM's PIC share damps smooth modes by O((kΔx)²) per unit time).
 - Where it wins: Thacker's bowl (the particles carry the moving wet/dry line without a front
   limiter), the dam-break fronts ({mpm_dam_front:.1f} m at 11 s on the finest grid, TG2-PC
-  {dam_front:.1f} m, exact 395.7 m), the Voellmy sheet ({mpm_voellmy_last:.3%} of the exact
-  speed at dx = 1 m, no time-integration lag); the lake at rest holds to 1e-13 (L1) with the
+  {dam_front:.1f} m, exact 395.7 m), the Voellmy sheet ({mpm_voellmy_last:.1e} of the exact
+  speed at dx = 1 m, relative); the lake at rest holds to 1e-13 (L1) with the
   full material, beside the paper's DAMPM 1.26e-12; the hemisphere front is the same along x,
   y, −x and the diagonal within a diagonal cell; particle mass is exact and the grid volume
   matches it to 1e-13.

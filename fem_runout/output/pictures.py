@@ -24,6 +24,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Pictures", "grid_shape", "plot_series", "render_depth", "use_headless_vtk"]
 
+#: Largest raster on which an unstructured mesh's depth pictures are drawn.
+MAX_PIXELS = 1_000_000
+
 #: VTK's variable naming the OpenGL render window class to create (VTK >= 9.4).
 VTK_WINDOW_ENV = "VTK_DEFAULT_OPENGL_WINDOW"
 
@@ -148,9 +151,13 @@ def render_depth(
     pyvista.OFF_SCREEN = True
     use_headless_vtk()
     shape = (ny + 1, nx + 1)
-    grid = pyvista.StructuredGrid(*(np.reshape(a, shape).T for a in (x, y, z)))
-    depth = np.where(h > threshold, h, np.nan)
+    inside = np.isfinite(z)  # a mesh sampled on a raster: NaN outside its outline
+    zf = np.where(inside, z, np.nanmin(z) if inside.any() else 0.0)
+    grid = pyvista.StructuredGrid(*(np.reshape(a, shape).T for a in (x, y, zf)))
+    depth = np.where(inside & (h > threshold), h, np.nan)
     grid.point_data[label] = depth  # StructuredGrid points run x fastest: the sorted order
+    if not inside.all():
+        grid = grid.extract_points(inside, adjacent_cells=False)
     wet = np.isfinite(depth)
     clim = (float(threshold), float(depth[wet].max()) if wet.any() else 1.0)
     plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 800))
@@ -182,8 +189,8 @@ class Pictures:
 
     Writes ``series.png`` (if a :class:`SeriesRecorder` is given), ``depth.png`` (final depth)
     and ``peak_depth.png`` (if a :class:`PeakTracker` is given) into ``out_dir``. A picture
-    that cannot be drawn (no pyvista, no off-screen context, non-structured nodes) gives a
-    warning, not an error.
+    that cannot be drawn (no pyvista, no off-screen context) gives a warning, not an error. On
+    an unstructured mesh the depth maps are drawn from the fields sampled on a raster.
     """
 
     def __init__(
@@ -221,16 +228,21 @@ class Pictures:
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
         """Gather the final state (collective) and draw the pictures on rank 0."""
-        fields = {k: solver.fields[k].x.array.real for k in ("h", "z")}
-        nodes = gather_nodal(solver.V, fields)
-        envelope = self.peaks.gathered() if self.peaks is not None else None
+        disc = getattr(solver, "disc", None)
+        if disc is not None and not disc.structured:
+            nodes = self._sampled(solver, disc)
+            envelope = None if nodes is None else nodes.pop("envelope")
+        else:
+            fields = {k: solver.fields[k].x.array.real for k in ("h", "z")}
+            nodes = gather_nodal(solver.V, fields)
+            envelope = self.peaks.gathered() if self.peaks is not None else None
         if nodes is None:
             return
         jobs: list[tuple[str, Callable[[Path], Path | None]]] = []
         if self.recorder is not None:
             series = self.recorder.series
             jobs.append(("series.png", lambda p: plot_series(series, p, self.title)))
-        shape = grid_shape(nodes["x"], nodes["y"])
+        shape = nodes.pop("shape", None) or grid_shape(nodes["x"], nodes["y"])
         if shape is None:
             warnings.warn("nodes are not a structured grid: no depth pictures", stacklevel=2)
         else:
@@ -247,6 +259,39 @@ class Pictures:
                 continue
             if written is not None:
                 self.written.append(Path(written))
+
+    def _sampled(self, solver: Solver, disc) -> dict | None:
+        """Return the final depth, bed and peak depth of a mesh on a raster (collective).
+
+        Pixels of the shortest cell edge over the mesh's bounding box (at most
+        :data:`MAX_PIXELS`), the Q1 fields sampled at their centres (:mod:`.sampling`), NaN
+        outside the mesh: the pictures of an unstructured run look like a grid run's. None
+        on ranks other than 0.
+        """
+        from fem_runout.output.sampling import sample_q1
+
+        n = disc.n_owned_nodes
+        arrays = {k: solver.fields[k].x.array.real for k in ("h", "z")}
+        if self.peaks is not None:
+            arrays["peak_depth"] = self.peaks.functions()[0].x.array.real
+        local = {}
+        for k, v in arrays.items():
+            local[k] = np.zeros(disc.coords.shape[0])
+            local[k][:n] = v[:n]
+            disc.update_ghosts(local[k])
+        xmin, xmax, ymin, ymax = disc.extent
+        size = max(disc.min_cell_size, np.sqrt((xmax - xmin) * (ymax - ymin) / MAX_PIXELS))
+        nx = max(2, int(np.ceil((xmax - xmin) / size)))
+        ny = max(2, int(np.ceil((ymax - ymin) / size)))
+        xs, ys = np.linspace(xmin, xmax, nx + 1), np.linspace(ymin, ymax, ny + 1)
+        grids = sample_q1(disc, local, xs, ys)
+        if grids is None:
+            return None
+        x, y = (a.ravel() for a in np.meshgrid(xs, ys))
+        peak = grids.get("peak_depth")
+        return {"x": x, "y": y, "z": grids["z"].ravel(), "h": grids["h"].ravel(),
+                "shape": (nx, ny),
+                "envelope": None if peak is None else {"peak_depth": peak.ravel()}}
 
     def _depth_job(
         self, nodes: dict[str, np.ndarray], values: np.ndarray, shape: tuple[int, int], title: str
