@@ -125,8 +125,7 @@ class Limiter:
         """
         arrays = self._on(region)
         m = arrays["mass"]
-        near, far = self.patch_depths(q_low[:, 0], region)
-        upper, lower = self.bounds(q0, q_low, z, u, region, near)
+        upper, lower, near, far = self.bounds(q0, q_low, z, u, region)
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
         rplus, rminus = np.empty((3, q0.shape[0])), np.empty((3, q0.shape[0]))
@@ -148,23 +147,35 @@ class Limiter:
         return region.cell_sum(np.ascontiguousarray(out.transpose(1, 2, 0)))
 
     def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
-               region: ActiveSet, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               region: ActiveSet) -> tuple[np.ndarray, ...]:
         """Upper and lower bounds (n, 3), each containing the low-order state (collective).
 
-        Compact arrays, over the active cells' patches (whole patches, or dry ones); ``near``
-        is the patch minimum of the low-order depth (:meth:`patch_depths`). The depth's upper
-        bound is relaxed at the shoreline (:data:`SHORE_SLACK`).
+        Compact arrays, over the active cells' patches (whole patches, or dry ones). Also
+        returns the patch minimum and maximum of the low-order depth (``near``, ``far``), the
+        former relaxing the depth's upper bound at the shoreline (:data:`SHORE_SLACK`). The
+        eight patch extrema are reduced over the ranks in one exchange (minima as maxima of
+        the negated values, which is exact).
         """
         nn = q0.shape[0]
-        hi, lo = np.full((3, nn), -np.inf), np.full((3, nn), np.inf)
+        ext = np.empty((8, nn))  # max of h, hu, hv; -min of h, hu, hv; max h^L, -min h^L
+        hi, lo = ext[0:3], ext[3:6]
+        hi.fill(-np.inf)
+        lo.fill(np.inf)
+        far, near = ext[6], ext[7]
+        far.fill(-np.inf)
+        near.fill(np.inf)
         arrays = self._on(region)
         cells = arrays["local"]
         a, b = np.ascontiguousarray(q0.T), np.ascontiguousarray(q_low.T)
         fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
         bar_state_extrema(cells, arrays["beta"], a[0], u[0], u[1], z,
                           self.g[region.nodes], hi[1:], lo[1:])
-        region.reducer.reduce(hi, "max")
-        region.reducer.reduce(lo, "min")
+        fct.patch_extrema(cells, b[0], far, near)
+        ext[3:6] *= -1.0
+        ext[7] *= -1.0
+        region.reducer.reduce(ext, "max")
+        ext[3:6] *= -1.0
+        ext[7] *= -1.0
         slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
         hi[1:] += slack
         lo[1:] -= slack
@@ -173,15 +184,7 @@ class Limiter:
             spread = np.where(hi[0] > lo[0], hi[0] - lo[0], 0.0)
         hi[0] += SHORE_SLACK * shore * np.minimum(spread, np.maximum(q_low[:, 0], 0.0))
         lo[0] = np.maximum(lo[0], 0.0)
-        return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low)
-
-    def patch_depths(self, h_low: np.ndarray, region: ActiveSet) -> tuple[np.ndarray, ...]:
-        """Patch minimum and maximum of the low-order depth per node, full patches (collective)."""
-        near, far = np.full(h_low.shape[0], np.inf), np.full(h_low.shape[0], -np.inf)
-        fct.patch_extrema(self._on(region)["local"], np.ascontiguousarray(h_low), far, near)
-        region.reducer.reduce(near, "min")
-        region.reducer.reduce(far, "max")
-        return near, far
+        return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low), near.copy(), far.copy()
 
     def thin_cap(self, near: np.ndarray, far: np.ndarray) -> np.ndarray:
         """Thin-layer ramp ``θ_i = clip(min_patch h^L / (1e3 κ + THIN_RATIO max_patch h^L))``.
@@ -192,6 +195,6 @@ class Limiter:
         3 m/s in a Coulomb pit; with an absolute threshold alone (``h < 1e3 κ``) a 4 mm
         layer on rough terrain reached 22 m/s (free-fall bound 21 m/s; 15 m/s with the
         relative ramp). The ramp replaces the former switch "a node of the cell is thinner
-        than 1e3 κ". ``near``, ``far``: :meth:`patch_depths`.
+        than 1e3 κ". ``near``, ``far``: the patch extrema of :meth:`bounds`.
         """
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)
