@@ -19,7 +19,7 @@ import numpy as np
 from fem_runout.callbacks import flow_index
 from fem_runout.output.diagnostics import nodal_speed
 from fem_runout.output.gather import gather_nodal, global_sum
-from fem_runout.output.sampling import bed_cosine_nodes, sample_q1
+from fem_runout.output.sampling import bed_cosine_nodes, ghosted, sample_q1
 from fem_runout.terrain.dem import sample_grid
 
 if TYPE_CHECKING:
@@ -285,11 +285,8 @@ class HazardMaps:
             return summary
         target = mesh_target(self.case, disc)
         xs, ys = target.centres()
-        local = {"cos": cos}
-        for k in ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h", "h0", "z"):
-            local[k] = np.zeros(disc.coords.shape[0])
-            local[k][:n] = track[k]
-            disc.update_ghosts(local[k])
+        names = ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h", "h0", "z")
+        local = {"cos": cos, **ghosted(disc, {k: track[k] for k in names})}
         grids = sample_q1(disc, local, xs, ys[::-1])
         if grids is not None:
             g = {k: v[::-1] for k, v in grids.items()}  # rows from the top, as the raster

@@ -268,17 +268,12 @@ class Pictures:
         outside the mesh: the pictures of an unstructured run look like a grid run's. None
         on ranks other than 0.
         """
-        from fem_runout.output.sampling import sample_q1
+        from fem_runout.output.sampling import ghosted, sample_q1
 
-        n = disc.n_owned_nodes
         arrays = {k: solver.fields[k].x.array.real for k in ("h", "z")}
         if self.peaks is not None:
             arrays["peak_depth"] = self.peaks.functions()[0].x.array.real
-        local = {}
-        for k, v in arrays.items():
-            local[k] = np.zeros(disc.coords.shape[0])
-            local[k][:n] = v[:n]
-            disc.update_ghosts(local[k])
+        local = ghosted(disc, arrays)
         xmin, xmax, ymin, ymax = disc.extent
         size = max(disc.min_cell_size, np.sqrt((xmax - xmin) * (ymax - ymin) / MAX_PIXELS))
         nx = max(2, int(np.ceil((xmax - xmin) / size)))

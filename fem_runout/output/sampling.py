@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["bed_cosine_nodes", "ray_front_radii", "sample_points", "sample_q1"]
+__all__ = ["bed_cosine_nodes", "ghosted", "ray_front_radii", "sample_points", "sample_q1"]
 
 _INSIDE = 1e-10  # tolerance on the reference coordinates (pixels on an edge)
 
@@ -105,6 +105,26 @@ def sample_points(disc, values: dict[str, np.ndarray],
     pick = stack[best, np.arange(m)]
     hit = np.isfinite(rank_key.min(axis=0))
     return {k: np.where(hit, pick[:, 2 + c], np.nan) for c, k in enumerate(names)}
+
+
+def ghosted(disc, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Local nodal arrays (owned then ghosts) from the owned entries of ``values`` (collective).
+
+    The samplers evaluate a cell from all of its nodes, ghosts included; fields kept on the
+    owned nodes only (the hazard tracks, the peak envelope) get their ghosts from the owners.
+
+    Args:
+        disc: The discretization.
+        values: Name -> array whose first ``disc.n_owned_nodes`` entries are the owned values.
+    """
+    n = disc.n_owned_nodes
+    out = {}
+    for name, v in values.items():
+        local = np.zeros(disc.coords.shape[0])
+        local[:n] = v[:n]
+        disc.update_ghosts(local)
+        out[name] = local
+    return out
 
 
 def sample_q1(disc, values: dict[str, np.ndarray], xs: np.ndarray,
