@@ -184,7 +184,7 @@ class Limiter:
             spread = np.where(hi[0] > lo[0], hi[0] - lo[0], 0.0)
         hi[0] += SHORE_SLACK * shore * np.minimum(spread, np.maximum(q_low[:, 0], 0.0))
         lo[0] = np.maximum(lo[0], 0.0)
-        return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low), near.copy(), far.copy()
+        return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low), near, far
 
     def thin_cap(self, near: np.ndarray, far: np.ndarray) -> np.ndarray:
         """Thin-layer ramp ``θ_i = clip(min_patch h^L / (1e3 κ + THIN_RATIO max_patch h^L))``.
