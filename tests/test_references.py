@@ -13,7 +13,7 @@ from mpi4py import MPI
 from fem_runout.bench import ladders
 from fem_runout.bench.suite_report import orders
 from fem_runout.methods import method_names
-from fem_runout.references import mangeney, shear_decay, thacker, voellmy_sheet
+from fem_runout.references import mangeney, radial, shear_decay, thacker, voellmy_sheet
 from fem_runout.references.ritter import ritter_depth
 
 COMM = MPI.COMM_SELF
@@ -28,6 +28,26 @@ def _ladder(fn, params, method):
 
 
 # --- the formulas themselves ---------------------------------------------------------------
+
+
+def test_radial_reference_conserves_mass_and_converges():
+    """The hemisphere's 1D reference: exact volume, self-convergence, a converged front."""
+    runs = [radial.radial_collapse(5.0, 1.2, 25.0, n) for n in (1000, 2000, 4000)]
+    volume = 2.0 / 3.0 * math.pi * 5.0**3
+    rs = np.linspace(0.0, 25.0, 50001)
+    for r, h, _ in runs:
+        assert abs(np.sum(2 * math.pi * r * (r[1] - r[0]) * h) / volume - 1) < 1e-12
+        assert h.min() >= 0.0
+    hs = [radial.sample(r, h, rs) for r, h, _ in runs]
+    weight = 2 * math.pi * rs * (rs[1] - rs[0]) / volume
+    diffs = [np.sum(weight * np.abs(a - b)) for a, b in zip(hs, hs[1:], strict=False)]
+    fronts = [radial.front(r, h, 1e-3) for r, h, _ in runs]
+    print("radial reference: L1 differences", diffs, "fronts", fronts)
+    assert diffs[1] < diffs[0] / 1.8  # converges (measured order 1.4)
+    assert diffs[1] < 5e-4  # 100x below the 2D levels' errors (TG2-PC at 200²: 2.4e-2)
+    assert abs(fronts[2] - fronts[1]) < 0.02  # m; a 2D cell at 200² is 0.25 m
+    # it spread, but not faster than a planar dry-bed tip from the centre's 5 m (2 c0 t)
+    assert 5.0 < fronts[2] < 5.0 + 2 * math.sqrt(9.81 * 5.0) * 1.2
 
 
 def test_thacker_volume_is_constant_and_the_surface_is_a_rotating_plane():
@@ -138,10 +158,14 @@ def test_inclined_dam_break_front_error_shrinks(method):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_hemisphere_and_lake_at_rest(method):
-    hemi = ladders.hemisphere(50, method, COMM)
-    assert hemi.error <= math.sqrt(2) * 1.0 + 1e-9  # one diagonal cell (dx = 1 m)
-    r_x, r_y, r_mx = (hemi.extra[k] for k in ("r_x", "r_y", "r_mx"))
-    assert r_x > 5.0 and math.isclose(r_x, r_y, rel_tol=1e-12)  # symmetric up to round-off
-    assert math.isclose(r_x, r_mx, rel_tol=1e-12)
+    """Hemisphere at 50² and 100²: L1 against the radial reference falls, fronts symmetric."""
+    levels, errors, _ = _ladder(ladders.hemisphere, (50, 100), method)
+    assert errors[1] < errors[0] and errors[1] < 0.1  # relative L1 of h
+    for hemi, dx in zip(levels, (1.0, 0.5), strict=True):
+        assert hemi.extra["spread"] <= math.sqrt(2) * dx + 1e-9  # one diagonal cell
+        assert hemi.extra["front_error"] < 3 * dx  # the front within 3 cells of the reference
+        r_x, r_y, r_mx = (hemi.extra[k] for k in ("r_x", "r_y", "r_mx"))
+        assert r_x > 5.0 and math.isclose(r_x, r_y, rel_tol=1e-12)  # symmetric to round-off
+        assert math.isclose(r_x, r_mx, rel_tol=1e-12)
     lake = ladders.lake_at_rest(25, method, COMM)
     assert max(lake.extra.values()) <= 1e-12, lake.extra
