@@ -85,6 +85,48 @@ def test_coarser_mesh_and_no_dem(tmp_path: Path) -> None:
         np.testing.assert_array_equal(out.read(1), result.peak_depth.reshape(3, 5)[::-1])
 
 
+def test_areas_are_counted_on_the_dem_pixels(tmp_path: Path) -> None:
+    """With a DEM the summary's areas are the GeoTIFFs' pixels above the threshold.
+
+    The same with and without written outputs, and on a mesh coarser than the DEM (10 m
+    nodes, 5 m pixels), where counting nodes would weight each by its 100 m² dual cell.
+    """
+    dem = write_dem(tmp_path / "dem.tif", plane())
+    write_polygons(tmp_path / "rel.geojson", [shapely.box(1010, 1950, 1030, 1975)])
+    spec = dem_case(dem, domain={"cell_size": 10.0}, output={"dir": str(tmp_path / "out")},
+                    time={"max": 2.0})
+    case = load_case(spec)
+    written = run(case)
+    threshold = case.output.front_threshold
+    areas = {}
+    for name, key in (("peak_depth", "affected_area"), ("deposit_depth", "deposit_area")):
+        with rasterio.open(written.out_dir / f"{name}.tif") as out:
+            pixels = out.read(1)
+            areas[key] = np.count_nonzero(pixels > threshold) * abs(out.res[0] * out.res[1])
+        assert written.summary[key] == pytest.approx(areas[key], rel=1e-12), key
+    assert areas["affected_area"] >= areas["deposit_area"] > 0
+    unwritten = run(case, write=False)
+    for key in ("affected_area", "deposit_area", "runout_length"):
+        assert unwritten.summary[key] == written.summary[key], key
+
+
+def test_areas_on_a_gmsh_mesh_are_the_pixels(tmp_path: Path) -> None:
+    """The same measure on an unstructured mesh (outline inside the DEM, irregular cells)."""
+    dem = write_dem(tmp_path / "dem.tif", plane())
+    write_polygons(tmp_path / "rel.geojson", [shapely.box(1010, 1950, 1030, 1975)])
+    outline = [[1003, 1923], [1097, 1923], [1097, 1997], [1003, 1997]]
+    case = load_case(dem_case(dem, domain={"outline": outline, "cell_size": 8.0},
+                              output={"dir": str(tmp_path / "out")}, time={"max": 2.0}))
+    written = run(case)
+    with rasterio.open(written.out_dir / "peak_depth.tif") as out:
+        pixels, res = out.read(1), out.res
+    assert (pixels == NODATA).any()  # outside the outline
+    area = np.count_nonzero(pixels > case.output.front_threshold) * abs(res[0] * res[1])
+    assert written.summary["affected_area"] == pytest.approx(area, rel=1e-12) and area > 0
+    unwritten = run(case, write=False)
+    assert unwritten.summary["affected_area"] == written.summary["affected_area"]
+
+
 def test_dampm_volume_balance_with_outflow(tmp_path: Path) -> None:
     """DAMPM on the steep DEM: particle volume + outflow is the released volume to round-off."""
     from mpi4py import MPI
