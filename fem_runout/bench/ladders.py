@@ -256,7 +256,7 @@ def hemisphere(n: int, method: str, comm) -> Level:
         vals = {k: front_radius(r.x, r.y, r.h, (25.0, 25.0), 1e-3, d) for k, d in dirs.items()}
         vals["spread"] = max(vals.values()) - min(vals.values())
         vals.update(hemisphere_errors(r.x, r.y, r.h, nodal_weights(r.x, r.y), (25.0, 25.0),
-                                      radii={k: vals[k] for k in dirs}))
+                                      r.t, case.gravity, radii={k: vals[k] for k in dirs}))
     vals = _bcast(comm, vals)
     return _level(f"{n}×{n}", case, r, vals.pop("l1"), **vals)
 

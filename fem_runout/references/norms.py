@@ -54,7 +54,15 @@ def front_radius(x, y, h, center, threshold, direction) -> float:
     across = np.abs(dx * direction[1] - dy * direction[0])
     ray = (across < 1e-6) & (along >= 0)
     order = np.argsort(along[ray], kind="stable")
-    dist, depth = along[ray][order], h[ray][order]
+    return crossing(along[ray][order], h[ray][order], threshold)
+
+
+def crossing(dist: np.ndarray, depth: np.ndarray, threshold: float) -> float:
+    """Where ``depth`` (at increasing ``dist``) falls to ``threshold`` for the last time.
+
+    Past the last sample with ``depth > threshold`` the crossing is interpolated linearly
+    towards the next sample (the last sample's distance if there is none; 0 if all are dry).
+    """
     wet = np.flatnonzero(depth > threshold)
     if wet.size == 0:
         return 0.0
