@@ -242,6 +242,22 @@ def cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return C, phi_int, w.sum(axis=1)
 
 
+def element_masses(cells: np.ndarray, coords: np.ndarray) -> np.ndarray:
+    """(n_cells, 4, 4) element mass matrices ``∫_K φ_a φ_b`` of bilinear quadrilaterals.
+
+    ``cells`` (n_cells, 4) in basix's Q1 order, ``coords`` (n_nodes, 2); the Gauss rule is
+    exact for a bilinear map (``det J`` affine). The matrices are exactly symmetric.
+    """
+    pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
+    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
+    tab = element.tabulate(1, pts)  # (3, nq, 4, 1)
+    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
+    jac = np.einsum("cka,qkb->cqab", coords[cells], dphi)
+    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+    mass = np.einsum("cq,qi,qj->cij", wts[None, :] * np.abs(det), phi, phi)
+    return 0.5 * (mass + mass.transpose(0, 2, 1))
+
+
 def _side(disc: Discretization, name: str, kind: str) -> Side:
     """Nodes of one side and their boundary weights ``∫ φ_i ds`` (exact for Q1)."""
     xmin, xmax, ymin, ymax = disc.extent

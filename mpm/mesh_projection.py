@@ -15,10 +15,10 @@ in the window (the principal submatrix of ``M_C``; the solution is taken as 0 ou
 
 from __future__ import annotations
 
-import basix
 import numba
 import numpy as np
 
+from fem_runout.mesh import element_masses
 from mpm.projection import blend, node_cells
 
 __all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector", "element_masses"]
@@ -27,22 +27,6 @@ __all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector", "ele
 WINDOW_RINGS = 24
 #: CG stops when the residual is below ``CG_RTOL ‖b‖`` (per column) or after the maximum.
 CG_RTOL, CG_MAX_ITERATIONS = 1e-15, 500
-
-
-def element_masses(cells: np.ndarray, coords: np.ndarray) -> np.ndarray:
-    """(n_cells, 4, 4) element mass matrices ``∫_K φ_a φ_b`` of bilinear quadrilaterals.
-
-    ``cells`` (n_cells, 4) in basix's Q1 order, ``coords`` (n_nodes, 2); the Gauss rule is
-    exact for a bilinear map (``det J`` affine). The matrices are exactly symmetric.
-    """
-    pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
-    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    tab = element.tabulate(1, pts)  # (3, nq, 4, 1)
-    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
-    jac = np.einsum("cka,qkb->cqab", coords[cells], dphi)
-    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
-    mass = np.einsum("cq,qi,qj->cij", wts[None, :] * np.abs(det), phi, phi)
-    return 0.5 * (mass + mass.transpose(0, 2, 1))
 
 
 @numba.njit(cache=True)

@@ -218,7 +218,7 @@ def shear_decay(ny: int, method: str, comm) -> Level:
         exact = ref.decay_rate(500.0, 1000.0)
         err = (abs(rate / exact - 1.0), rate, exact)
     err = _bcast(comm, err)
-    return _level(f"20×{ny}", case, r, err[0], rate=err[1], exact=err[2])
+    return _level(f"40×{ny}", case, r, err[0], rate=err[1], exact=err[2])
 
 
 DAM_TIMES = (5.5, 11.0)

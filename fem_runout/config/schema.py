@@ -231,6 +231,9 @@ class NumericsSpec(StrictSpec):
     dry_tolerance: Real = Field(1e-6, gt=0)
     thin_depth: Real | None = Field(None, gt=0)
     fct: Bool = True
+    # TG2: consistent-mass correction of the corrector, gated by a smoothness sensor
+    # (fem_runout/tg2/mass_correction.py); false: the seed's lumped corrector
+    mass_correction: Bool = True
     active_set: Bool = True  # TG2: assemble on the cells near the flow only (same bits)
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)

@@ -31,6 +31,7 @@ from fem_runout.tg2.low_order import (
     low_order_pass,
     velocity,
 )
+from fem_runout.tg2.mass_correction import MassCorrection
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
 WET_DEPTH = 1e3
@@ -47,6 +48,9 @@ class Transport:
         fct_enabled: Blend with the low-order scheme (True) or use raw TG2-PC (False).
         slope: Bed geometry of the slope-consistent form (``g`` in ``g h ∇η`` and the wave
             speeds becomes ``G = cos²θ max(g + u·H·u, 0)``), or None for the seed's form.
+        active_set: Work on the cells near the flow only (the same bits as all cells).
+        mass_correction: Add the gated consistent-mass correction to the corrector
+            (:mod:`fem_runout.tg2.mass_correction`); False gives the seed's lumped corrector.
     """
 
     def __init__(
@@ -58,6 +62,7 @@ class Transport:
         fct_enabled: bool = True,
         slope: SlopeGeometry | None = None,
         active_set: bool = True,
+        mass_correction: bool = True,
     ) -> None:
         self.disc = disc
         self.g = float(gravity)
@@ -80,6 +85,7 @@ class Transport:
         self.active = ActiveForms(disc, self.reducer, self.high.forms())
         self.active_set = active_set
         self.limiter = Limiter(disc, self.gn, self.kappa)
+        self.mass_correction = MassCorrection(disc, self.kappa) if mass_correction else None
         self.outflow_volume = 0.0
         self._beta = self.limiter.beta_all
         self._fresh = False  # low-order rates of the current state are cached
@@ -203,8 +209,11 @@ class Transport:
         nodes = a.nodes
         q0 = self.state_on(nodes)
         u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
-        q_low = q0 + dt * self._low_order_rates(q0, u, m)
+        boundary = self._boundary_flux(q0, u)
+        q_low = q0 + dt * (a.cell_sum(arrays["lo"]) + boundary) / m[:, None]
         aec = high - dt * arrays["lo"]
+        if self.mass_correction is not None:
+            self.mass_correction.add(aec, high, dt * boundary, q0[:, 0], m, a)
         if self.fct_enabled:
             corr = self.limiter.correction(q0, q_low, aec, z, u, a)
         else:
@@ -215,12 +224,6 @@ class Transport:
         self.set_state_on(nodes, q_new)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _low_order_rates(self, q: np.ndarray, u: np.ndarray, m: np.ndarray) -> np.ndarray:
-        """Nodal low-order rate (Σ_K A_L[K, i] + boundary flux) / m_i (compact arrays)."""
-        acc = self.active.cell_sum(self._arrays()["lo"])
-        acc += self._boundary_flux(q, u)
-        return acc / m[:, None]
-
     def _boundary_flux(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Open sides: outflow ``-w_i F(U_i)·n⁺``; nothing enters; walls take nothing through.
 
