@@ -116,6 +116,15 @@ def _table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _kept_rows(text: str, ran: set[str]) -> list[str]:
+    """Return the doc's table rows of the methods not run now (kept as last measured)."""
+    if BEGIN not in text or END not in text:
+        return []
+    block = text.split(BEGIN, 1)[1].split(END, 1)[0]
+    return [line for line in block.splitlines() if line.startswith("| ")
+            and not line.startswith("| method") and line.split("|")[1].strip() not in ran]
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the case on its DEM and the padded one, for each method; update the doc."""
     dem = _dem_of(args.case)
@@ -134,11 +143,13 @@ def main(args: argparse.Namespace) -> int:
             rows.append({"method": method, "ranks": args.ranks, "dem": name, "nodes": nodes,
                          "ratio": s["wall_time"] / base,
                          **{k: s[k] for k in ("wall_time", *KEYS)}})
-    table = _table(rows)
+    text = args.out.read_text()
+    kept = _kept_rows(text, set(args.methods))
+    table = _table(rows) + "".join(f"\n{line}" for line in kept)
     stamp = (f"{datetime.date.today()}, {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} cores; `python -m fem_runout.bench footprint "
-             f"--ranks {args.ranks}`")
-    text = args.out.read_text()
+             f"--ranks {args.ranks} --methods {' '.join(args.methods)}`"
+             + ("; the other methods' rows as last measured" if kept else ""))
     if BEGIN in text and END in text:
         head, rest = text.split(BEGIN, 1)
         _, tail = rest.split(END, 1)
