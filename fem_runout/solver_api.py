@@ -62,7 +62,11 @@ class Solver(Protocol):
         ...
 
     def snapshot(self) -> Any:
-        """Return a copy of the whole state, for :meth:`restore` (local, no MPI)."""
+        """Return a copy of the whole state, for :meth:`restore` (local, no MPI).
+
+        The copy stays valid until the next call: a solver may reuse its memory (the
+        runner takes one every step, to restore the last good state).
+        """
         ...
 
     def restore(self, snap: Any) -> None:

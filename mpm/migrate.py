@@ -79,5 +79,5 @@ def migrate(grid: ParticleGrid, particles: Particles,
         return particles, 0
     stay = np.ones(len(particles), dtype=bool)
     stay[leaving] = False
-    merged = Particles.concatenate([particles.select(stay), Particles.unpack(recv)])
+    merged = particles.select_and_append(stay, Particles.unpack(recv))
     return merged, int(leaving.size)

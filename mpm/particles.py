@@ -102,6 +102,25 @@ class Particles:
         """Deep copy."""
         return Particles(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
 
+    def copy_into(self, store: dict[str, np.ndarray] | None) -> tuple[Particles, dict]:
+        """Copy into the arrays of ``store`` (grown when too small); return the copy and store.
+
+        A copy made every step (the runner's last good state) reuses its memory instead of
+        allocating (and page-faulting) some MB per step. The copy is valid until the next
+        call with the same store.
+        """
+        n = len(self)
+        store = {} if store is None else store
+        out = {}
+        for f in fields(self):
+            mine = getattr(self, f.name)
+            buf = store.get(f.name)
+            if buf is None or buf.size < n:
+                buf = store[f.name] = np.empty(max(n, int(1.25 * n)), dtype=mine.dtype)
+            out[f.name] = buf[:n]
+            out[f.name][:] = mine
+        return Particles(**out), store
+
     def select(self, mask: np.ndarray) -> Particles:
         """Return the particles where ``mask`` is true (or at the given indices)."""
         return Particles(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
@@ -126,6 +145,18 @@ class Particles:
         data = {name: rows[:, k].copy() for k, name in enumerate(FLOAT_FIELDS)}
         cell = np.ascontiguousarray(rows[:, -2]).view(np.int64).copy()
         return cls(**data, cell=cell, id=np.ascontiguousarray(rows[:, -1]).view(np.int64).copy())
+
+    def select_and_append(self, keep: np.ndarray, other: Particles) -> Particles:
+        """Return the particles where ``keep`` is true followed by ``other`` (one copy)."""
+        n = int(np.count_nonzero(keep))
+        out = {}
+        for f in fields(self):
+            mine, theirs = getattr(self, f.name), getattr(other, f.name)
+            joined = np.empty(n + theirs.size, dtype=mine.dtype)
+            np.compress(keep, mine, out=joined[:n])
+            joined[n:] = theirs
+            out[f.name] = joined
+        return Particles(**out)
 
     @classmethod
     def concatenate(cls, parts: list[Particles]) -> Particles:

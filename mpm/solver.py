@@ -125,6 +125,7 @@ class MPMSolver:
         self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
         self.outflow_volume = 0.0
         self.sent = 0
+        self._snap_store: dict[str, np.ndarray] | None = None  # reused by :meth:`snapshot`
         self._problem: str | None = None
         self.walls = [s for s in self.nodal.sides if s.kind == "wall"]
         self.open_sides = [s for s in self.nodal.sides if s.kind == "open"]
@@ -224,8 +225,9 @@ class MPMSolver:
         self._refresh()
 
     def snapshot(self) -> tuple[Particles, float]:
-        """Copy of the state."""
-        return self.particles.copy(), self.outflow_volume
+        """Copy of the state, valid until the next snapshot (its memory is reused)."""
+        snap, self._snap_store = self.particles.copy_into(self._snap_store)
+        return snap, self.outflow_volume
 
     def restore(self, snap: tuple[Particles, float]) -> None:
         """Restore a :meth:`snapshot`."""

@@ -128,6 +128,8 @@ class DomainSplitter:
         new_ids = self.next_id + np.searchsorted(order, p.id[idx])
         self.next_id += int(parents.size)
         self.count += int(parents.size)
+        if idx.size == 0:  # others split: nothing to copy here
+            return p
         half = 0.5 * getattr(p, key)[idx]
         getattr(p, key)[idx] = half  # in place: the solver owns the arrays
         p.volume[idx] *= 0.5

@@ -69,3 +69,48 @@ def test_skipped_scene_needs_no_peer(tmp_path, skip):
                                       str(tmp_path / "g"), "--avaframe-venv", str(tmp_path / "a")])
     with pytest.raises(FileNotFoundError, match="avaframe" if skip == "dam" else "geoclaw"):
         side_by_side.peer_pythons(args)
+
+
+def test_ladder_grids_keep_the_aspect_and_order():
+    from fem_runout.bench.peers_ladder import ladder_grids
+
+    assert ladder_grids((495, 33), (2.0, 0.25, 1.0, 0.5)) == [(124, 8), (248, 16), (495, 33),
+                                                               (990, 66)]
+
+
+def test_wall_at_error_interpolates_and_only_bounds_outside():
+    from fem_runout.bench.peers_ladder import wall_at_error
+
+    # wall = 10 e^-3 on a ladder e = 0.4, 0.2, 0.1: exact inside (a power law)
+    errors = [0.4, 0.2, 0.1]
+    walls = [10.0 * e**-3 for e in errors]
+    inside, bound = wall_at_error(errors, walls, 0.15)
+    assert bound == "" and inside == pytest.approx(10.0 * 0.15**-3, rel=1e-12)
+    # a level read at its own error gives its own wall
+    assert wall_at_error(errors, walls, 0.2)[0] == pytest.approx(walls[1], rel=1e-12)
+    # beyond the ladder: the finest (or cheapest) level's wall as a bound, no extrapolation
+    assert wall_at_error(errors, walls, 0.05) == (pytest.approx(walls[2], rel=1e-12), ">")
+    assert wall_at_error(errors, walls, 0.8) == (pytest.approx(walls[0], rel=1e-12), "<")
+
+
+def test_ladder_section_in_the_doc(tmp_path):
+    def level(wall, error, nx):
+        return [{"wall": wall, "steps": 10 * nx, "error": error, "nx": nx, "ny": nx // 10,
+                 "work": 1, "front": 1.0}]
+
+    runs = {"dam:GeoClaw": level(2.0, 0.16, 100), "dam:TG2-PC": level(4.0, 0.05, 100),
+            "ladder:GeoClaw 50x5": level(0.25, 0.32, 50),
+            "ladder:GeoClaw 100x10": level(2.0, 0.16, 100),
+            "ladder:GeoClaw 200x20": level(16.0, 0.08, 200),
+            "ladder:TG2-PC 50x5": level(0.5, 0.1, 50),
+            "ladder:TG2-PC 100x10": level(4.0, 0.05, 100)}
+    out = tmp_path / "peers.md"
+    write_doc(out, runs, {"grid": (100, 10), "ladder": (0.5, 1.0, 2.0)})
+    text = out.read_text()
+    assert "### Cost at equal accuracy" in text
+    # GeoClaw's wall is 2 (0.16/e)^3: at TG2-PC's 0.1 (inside its ladder) 8.19 s
+    assert "| TG2-PC 50 × 5 | 0.1000 | 0.50 | 8.19 | 0.061 |" in text
+    # 0.05 is beyond GeoClaw's finest level (0.08, 16 s): at least 16 s, ratio at most 0.25
+    assert "| TG2-PC 100 × 10 | 0.0500 | 4.00 | > 16.00 | < 0.250 |" in text
+    # GeoClaw's 0.32 is above TG2-PC's coarsest error: TG2-PC needs less than 0.5 s there
+    assert "| GeoClaw 50 × 5 | 0.3200 | < 0.50 | 0.25 | < 2.000 |" in text

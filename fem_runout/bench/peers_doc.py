@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from fem_runout.bench.peers_ladder import ladder_lines
 from fem_runout.bench.step_cost import machine_info
 
 __all__ = ["avakot_table", "dam_table", "median_row", "write_doc"]
@@ -76,7 +77,8 @@ def avakot_table(rows: dict[str, dict[str, Any]]) -> list[str]:
 
 
 def _git_rev(root: Path) -> str:
-    res = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"],
+    res = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty",
+                          "--abbrev=7"],
                          capture_output=True, text=True, check=False)
     return res.stdout.strip() or "unknown"
 
@@ -96,6 +98,26 @@ def _header(by_scene: dict[str, dict[str, dict[str, Any]]], options: dict[str, A
         "(peer, TG2-PC, DAMPM, peer, …); the numbers are medians, the range is over the rounds.",
         "", "The peers live in their own virtualenvs outside the project "
         "(`peers/README.md`); they are never dependencies of fem_runout.", ""]
+
+
+def _ladder_section(runs: dict[str, list[dict[str, Any]]], options: dict[str, Any]) -> list[str]:
+    """Return the dam break's ladder section (:mod:`fem_runout.bench.peers_ladder`), if run."""
+    from fem_runout import methods
+
+    ours = methods.get(options.get("ladder_method") or methods.default_method()).display
+    table = ladder_lines(runs, ours)
+    if not table:
+        return []
+    figure = Path(options.get("figure", "figures/peers_avakot.png"))
+    return ["### Cost at equal accuracy: a resolution ladder for both", "",
+            f"GeoClaw and {ours} on the side-by-side grid times "
+            f"{', '.join(f'{f:g}' for f in options.get('ladder', ()))} (cells in the same "
+            "aspect), one run per level beside the rounds' medians on the side-by-side grid. "
+            "Wall times at the other code's error: `log wall` interpolated linearly in "
+            "`log error` between the two levels that bracket it "
+            "(`fem_runout/bench/peers_ladder.py`).", "", *table, "",
+            f"![wall time against front error](figures/"
+            f"{figure.with_name('peers_dam_ladder.png').name})", ""]
 
 
 def write_doc(out: Path, runs: dict[str, list[dict[str, Any]]], options: dict[str, Any]) -> None:
@@ -123,6 +145,7 @@ def write_doc(out: Path, runs: dict[str, list[dict[str, Any]]], options: dict[st
                   "at 5.5 and 11 s. Front = largest x with h > 1e-3 m (GeoClaw: cell centres, "
                   "mean over the rows; ours: nodes).", ""]
         lines += dam_table(by_scene["dam"], (nx, ny)) + [""]
+        lines += _ladder_section(runs, options)
     if "avakot" in by_scene:
         lines += ["## avaKot against com1DFA", "",
                   "Same DEM, release polygon (1 m normal to the slope), Voellmy μ = 0.155, "

@@ -37,7 +37,8 @@ import numpy as np
 
 from fem_runout.bench.peers import depth_maps_figure, our_metrics, peer_metrics
 from fem_runout.bench.peers_doc import write_doc
-from fem_runout.methods import method_names
+from fem_runout.bench.peers_ladder import ladder_figure, ladder_grids
+from fem_runout.methods import default_method, method_names
 
 __all__ = ["HELP", "Job", "add_arguments", "main", "peer_pythons"]
 
@@ -77,6 +78,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--avaframe-venv", type=Path, default=PEERS_HOME / "avaframe")
     parser.add_argument("--grid", type=int, nargs=2, default=(495, 33), metavar=("NX", "NY"),
                         help="dam-break cells (default 495 33: dx = 0.91 m)")
+    parser.add_argument("--ladder", type=float, nargs="+", default=(0.25, 0.5, 1.0, 2.0),
+                        metavar="F", help="dam-break ladder: --grid times these factors, run "
+                        "once each by GeoClaw and TG2-PC after the rounds (default 0.25 0.5 1 "
+                        "2; `--ladder 1` for none)")
+    parser.add_argument("--ladder-method", choices=METHODS, default=default_method(),
+                        help="our method on the ladder (default: the default method)")
     parser.add_argument("--com1dfa-cells", type=float, nargs="+", default=(10.0, 5.0),
                         help="com1DFA mesh cell sizes (default: ours, 10 m, and its default 5 m)")
     parser.add_argument("--skip", choices=("dam", "avakot"), action="append", default=[],
@@ -119,8 +126,9 @@ def _subprocess(cmd: list[str], env: dict[str, str] | None, folder: Path) -> Non
         raise RuntimeError(f"{cmd[1]} failed ({res.returncode}); see {folder / 'command.log'}")
 
 
-def _geoclaw(args: argparse.Namespace, python: Path) -> Job:
-    nx, ny = args.grid
+def _geoclaw(args: argparse.Namespace, python: Path, grid: tuple[int, int] | None = None,
+             scene: str = "dam") -> Job:
+    nx, ny = grid or args.grid
 
     def run(folder: Path) -> tuple[dict[str, Any], None]:
         _subprocess([str(python), str(ROOT / "peers/geoclaw/run_dam_break.py"), "--nx", str(nx),
@@ -128,13 +136,13 @@ def _geoclaw(args: argparse.Namespace, python: Path) -> Job:
                     _claw_env(args.geoclaw_venv), folder)
         s = json.loads((folder / "summary.json").read_text())
         return {"wall": s["wall_time"], "steps": s["steps"], "work": nx * ny * s["steps"],
-                "front": s["front_11"], "error": s["rel_11"],
+                "front": s["front_11"], "error": s["rel_11"], "nx": nx, "ny": ny,
                 "version": f"clawpack {s['clawpack_version']}"}, None
 
-    return Job("dam", "GeoClaw", run)
+    return Job(scene, "GeoClaw" if scene == "dam" else f"GeoClaw {nx}x{ny}", run)
 
 
-def _our_dam(method: str, grid: tuple[int, int]) -> Job:
+def _our_dam(method: str, grid: tuple[int, int], scene: str = "dam") -> Job:
     from fem_runout.references.inclined_dam_break import exact_front
 
     def run(folder: Path) -> tuple[dict[str, Any], None]:
@@ -143,9 +151,11 @@ def _our_dam(method: str, grid: tuple[int, int]) -> Job:
         front = float(r.series["front_x"][int(np.argmin(np.abs(r.series["t"] - 11.0)))])
         work = (r.particles if r.particles else grid[0] * grid[1]) * r.steps
         return {"wall": r.wall_time, "steps": r.steps, "work": work, "front": front,
-                "error": abs(front / exact_front(11.0) - 1.0), "particles": r.particles}, None
+                "error": abs(front / exact_front(11.0) - 1.0), "particles": r.particles,
+                "nx": grid[0], "ny": grid[1]}, None
 
-    return Job("dam", _label(method), run)
+    label = _label(method)
+    return Job(scene, label if scene == "dam" else f"{label} {grid[0]}x{grid[1]}", run)
 
 
 def _com1dfa(args: argparse.Namespace, python: Path, cell: float) -> Job:
@@ -212,6 +222,38 @@ def build_jobs(args: argparse.Namespace, pythons: dict[str, Path]) -> list[Job]:
     return jobs
 
 
+def ladder_jobs(args: argparse.Namespace, pythons: dict[str, Path]) -> list[Job]:
+    """Return the dam-break ladder's jobs off ``--grid`` (GeoClaw, then ours, per level)."""
+    if "dam" in args.skip:
+        return []
+    jobs: list[Job] = []
+    for grid in ladder_grids(tuple(args.grid), tuple(args.ladder)):
+        if grid != tuple(args.grid):
+            jobs += [_geoclaw(args, pythons["geoclaw"], grid, "ladder"),
+                     _our_dam(args.ladder_method, grid, "ladder")]
+    return jobs
+
+
+def _ladder_runs(runs: dict[str, list[dict[str, Any]]], args: argparse.Namespace) -> None:
+    """Add the rounds' ``--grid`` runs to the ladder (in place) if the ladder was run."""
+    if not any(key.startswith("ladder:") for key in runs):
+        return
+    nx, ny = args.grid
+    for name in ("GeoClaw", _label(args.ladder_method)):
+        runs[f"ladder:{name} {nx}x{ny}"] = runs.get(f"dam:{name}", [])
+
+
+def _run_job(job: Job, args: argparse.Namespace, runs: dict[str, list[dict[str, Any]]],
+             maps: dict[str, Any], label: str) -> None:
+    """Run one job, record its numbers (and map), print a line."""
+    metrics, depth_map = job.run(args.work / job.scene / job.name.replace(" ", "_"))
+    runs.setdefault(f"{job.scene}:{job.name}", []).append(metrics)
+    if depth_map is not None:
+        maps[job.name] = depth_map
+    print(f"{label} {job.scene:6s} {job.name:14s} wall {metrics['wall']:7.2f} s, "
+          f"{metrics['steps']} steps", flush=True)
+
+
 def _warm_up() -> None:
     """Load every method's compiled kernels once (short dam break, nothing written)."""
     for method in METHODS:
@@ -234,14 +276,14 @@ def main(args: argparse.Namespace) -> int:
     maps: dict[str, Any] = {}
     for k in range(args.rounds):
         for job in jobs:
-            metrics, depth_map = job.run(args.work / job.scene / job.name.replace(" ", "_"))
-            runs[f"{job.scene}:{job.name}"].append(metrics)
-            if depth_map is not None:
-                maps[job.name] = depth_map
-            print(f"round {k + 1}/{args.rounds} {job.scene:6s} {job.name:14s} "
-                  f"wall {metrics['wall']:7.2f} s, {metrics['steps']} steps", flush=True)
+            _run_job(job, args, runs, maps, f"round {k + 1}/{args.rounds}")
+    for job in ladder_jobs(args, pythons):
+        _run_job(job, args, runs, maps, "ladder")
+    _ladder_runs(runs, args)
     write_doc(args.out, runs, vars(args))
     if maps:
         depth_maps_figure(maps, args.figure)
+    ladder_figure(runs, args.figure.with_name("peers_dam_ladder.png"),
+                  ("GeoClaw", _label(args.ladder_method)))
     print(f"wrote {args.out}")
     return 0

@@ -79,6 +79,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from fem_runout.physics.friction.newton import solve_direction
 from fem_runout.physics.friction.registry import Parameter, ParameterError
 from fem_runout.physics.slope import BedFrame
 
@@ -379,24 +380,7 @@ class FrictionLaw:
         ``gc``, ``gt``: gravity of the yield and drag terms (:meth:`scales`); ``k``: the drag
         coefficient (:meth:`drag_coefficient`).
         """
-        rhs = np.where(moving, star - theta * gc * self.mu * h * n_i, 0.0)
-        active = moving & (n_i != 0.0)
-        mag_n = np.where(active, np.abs(n_i), 1.0)
-        a = np.where(active, theta * gt * k / (h * h * mag_n), 0.0)
-        sign = np.sign(rhs)
-        r_abs = np.abs(rhs)
-        # upper bounds on the root |x|: |R| (no drag) and sqrt(|R|/a) (drag only)
-        bound = np.minimum(r_abs, np.sqrt(r_abs / np.where(a > 0, a, 1.0)) + (a == 0) * r_abs)
-        g_abs = np.abs(guess)
-        use_guess = (np.sign(guess) == sign) & (g_abs <= bound) & (g_abs + a * g_abs**2 >= r_abs)
-        x = np.where(use_guess, g_abs, bound)  # work with |x| (x has the sign of R)
-        scale = r_abs + theta * gc * self.mu * h * np.abs(n_i)
-        for _ in range(NEWTON_MAX_ITER):
-            res = x + a * x * x - r_abs
-            todo = np.abs(res) > NEWTON_RTOL * scale
-            if not todo.any():
-                return np.where(active, sign * x, 0.0)
-            # each node stops at its own convergence: its result does not depend on which
-            # other nodes share its rank (the same bits on any partition)
-            x = np.where(todo, x - res / (1.0 + 2.0 * a * x), x)
-        raise FloatingPointError("friction Newton iteration did not converge")
+        # one compiled pass: each node stops at its own convergence, so its result does not
+        # depend on which other nodes share its rank (the same bits on any partition)
+        return solve_direction(h, star, guess, n_i, moving, gc, gt, k, theta, self.mu,
+                               NEWTON_RTOL, NEWTON_MAX_ITER)
