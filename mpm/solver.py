@@ -19,8 +19,9 @@ previous step):
    (eqs. 3, 41; USL: updated last);
    positions ``x_p += Δt v_p^{k+1}`` (eq. 39 with the updated velocity, cell-local);
 5. particles leaving through open sides are removed (their volume counted as outflow), the
-   others are rebalanced over the ranks (strips of rows, :mod:`mpm.migrate`); P2G of the new
-   state; projection of ``h, hu, hv`` onto Q1 for the outputs (:mod:`mpm.projection`).
+   others are rebalanced over the ranks every :data:`mpm.migrate.REBALANCE_EVERY` steps
+   (strips of rows, :mod:`mpm.migrate`); P2G of the new state; projection of ``h, hu, hv``
+   onto Q1 for the outputs (:mod:`mpm.projection`).
 
 Forces (eq. 34): body ``-m_p g ∇Z(x_p) N_i`` and effective stress ``-V_p σ^∇_p ∇N_i`` with
 ``σ^∇ = σ - ½ ρ g h I`` (eq. 26). With a still-water depth ``H`` (a flat initial free surface)
@@ -43,7 +44,7 @@ from mpm.exchange import FoldExchange, p2g_bounds
 from mpm.fields import FieldWriter
 from mpm.grid import ParticleGrid
 from mpm.mesh_grid import MeshParticleGrid
-from mpm.migrate import balanced_destinations, migrate
+from mpm.migrate import REBALANCE_EVERY, balanced_destinations, migrate
 from mpm.nodal import (
     GridSums,
     NodalGrid,
@@ -126,6 +127,7 @@ class MPMSolver:
         self.outflow_volume = 0.0
         self.sent = 0
         self._snap_store: dict[str, np.ndarray] | None = None  # reused by :meth:`snapshot`
+        self._since_balance = 0  # steps since the particles were balanced over the ranks
         self._problem: str | None = None
         self.walls = [s for s in self.nodal.sides if s.kind == "wall"]
         self.open_sides = [s for s in self.nodal.sides if s.kind == "open"]
@@ -220,8 +222,12 @@ class MPMSolver:
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
         self.particles = self.splitter.split(self.particles)
-        self.particles, self.sent = migrate(self.grid, self.particles,
-                                            balanced_destinations(self.grid, self.particles))
+        self._since_balance += 1
+        self.sent = 0
+        if self._since_balance >= REBALANCE_EVERY:  # any rank may hold any particle
+            self._since_balance = 0
+            self.particles, self.sent = migrate(
+                self.grid, self.particles, balanced_destinations(self.grid, self.particles))
         self._refresh()
 
     def snapshot(self) -> tuple[Particles, float]:
