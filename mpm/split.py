@@ -105,31 +105,45 @@ class DomainSplitter:
     def split(self, p: Particles) -> Particles:
         """Split along x, then y, until every half-width is within the limit (collective).
 
-        ``p`` is changed in place (the parents' halves); the result holds parents and children.
+        ``p`` is changed in place (the parents' halves); the result holds parents and children
+        (in the order of splitting the joined set axis by axis, built with one copy).
         """
-        while self._any_wide(p):  # the usual step: one small message, nothing to split
-            p = self._split_axis(p, "lx", 0)
-            p = self._split_axis(p, "ly", 1)
-        return p
+        parts = [p]
+        while self._any_wide(parts):  # the usual step: one small message, nothing to split
+            parts = self._split_axis(parts, "lx", 0)
+            parts = self._split_axis(parts, "ly", 1)
+        return parts[0] if len(parts) == 1 else Particles.concatenate(parts)
 
-    def _any_wide(self, p: Particles) -> bool:
+    def _any_wide(self, parts: list[Particles]) -> bool:
         """Whether a particle on any rank exceeds the limit (collective)."""
-        lim_x, lim_y = self.limits(p)
-        wide = bool((p.lx > lim_x).any() or (p.ly > lim_y).any())
+        wide = False
+        for p in parts:
+            lim_x, lim_y = self.limits(p)
+            wide = wide or bool((p.lx > lim_x).any() or (p.ly > lim_y).any())
         return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
 
-    def _split_axis(self, p: Particles, key: str, axis: int) -> Particles:
-        comm = self.grid.comm
-        idx = np.flatnonzero(getattr(p, key) > self.limits(p)[axis])
-        parents = np.concatenate(comm.allgather(p.id[idx]))
+    def _split_axis(self, parts: list[Particles], key: str, axis: int) -> list[Particles]:
+        """Split the particles of ``parts`` (one set, in order) along an axis; append children.
+
+        New ids follow the parents' ids over all ranks (the same on any rank count).
+        """
+        idx = [np.flatnonzero(getattr(p, key) > self.limits(p)[axis]) for p in parts]
+        mine = np.concatenate([p.id[i] for p, i in zip(parts, idx, strict=True)])
+        parents = np.concatenate(self.grid.comm.allgather(mine))
         if parents.size == 0:
-            return p
-        order = np.sort(parents)
-        new_ids = self.next_id + np.searchsorted(order, p.id[idx])
+            return parts
+        new_ids = self.next_id + np.searchsorted(np.sort(parents), mine)
         self.next_id += int(parents.size)
         self.count += int(parents.size)
-        if idx.size == 0:  # others split: nothing to copy here
-            return p
+        children, start = [], 0
+        for p, i in zip(parts, idx, strict=True):
+            if i.size:  # a rank (or part) that splits nothing copies nothing
+                children.append(self._halve(p, i, key, new_ids[start:start + i.size]))
+            start += i.size
+        return parts + children
+
+    def _halve(self, p: Particles, idx: np.ndarray, key: str, new_ids: np.ndarray) -> Particles:
+        """Halve particles ``idx`` of ``p`` along ``key`` in place; return the other halves."""
         half = 0.5 * getattr(p, key)[idx]
         getattr(p, key)[idx] = half  # in place: the solver owns the arrays
         p.volume[idx] *= 0.5
@@ -143,7 +157,7 @@ class DomainSplitter:
         p.v[idx] -= getattr(p, cv)[idx] * half
         child.u += getattr(child, cu) * half
         child.v += getattr(child, cv) * half
-        return Particles.concatenate([p, child])
+        return child
 
     def _shift(self, p: Particles, idx, key: str, dist: np.ndarray) -> None:
         """Move particles ``idx`` by ``dist`` along x (``lx``) or y, kept inside the rectangle."""

@@ -13,10 +13,8 @@ import math
 
 import numpy as np
 import ufl
-from dolfinx import fem
-from dolfinx.fem.petsc import assemble_vector
+from dolfinx import fem, la
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from fem_runout.config import load_case
 from fem_runout.methods import get, method_names
@@ -37,11 +35,10 @@ def _exact(solver) -> np.ndarray:
     rho, g = solver.rho, solver.g
     out = []
     for k in range(2):
-        b = assemble_vector(fem.form((-rho * g * h * z.dx(k) * v
-                                      + 0.5 * rho * g * h * h * v.dx(k)) * dx))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        b = fem.assemble_vector(fem.form((-rho * g * h * z.dx(k) * v
+                                          + 0.5 * rho * g * h * h * v.dx(k)) * dx))
+        b.scatter_reverse(la.InsertMode.add)
         out.append(b.array.copy())
-        b.destroy()
     return np.stack(out, axis=1)
 
 
