@@ -39,6 +39,14 @@ def _put(values, dofs, data):
 
 
 @numba.njit(cache=True)
+def _put_cell_means(values, dofs, nodal, cells):
+    """``values[dofs[k]] = mean of nodal[cells[k, :]]`` (sum in node order, then / 4)."""
+    for k in range(cells.shape[0]):
+        values[dofs[k]] = (((nodal[cells[k, 0]] + nodal[cells[k, 1]]) + nodal[cells[k, 2]])
+                           + nodal[cells[k, 3]]) / 4.0
+
+
+@numba.njit(cache=True)
 def _zero_blocks(values, blocks, bs):
     """Zero the ``bs`` entries of every block index in ``blocks`` (any shape)."""
     flat = blocks.reshape(-1)
@@ -176,7 +184,7 @@ class HighOrder:
         reconstructed_surface(cells, h, z, self.kappa, cell_eta)
         _put(self.eta_t.x.array, on["dofsd"], cell_eta)
         if gn is not None:
-            self.gk.x.array[on["dofs0"]] = gn[cells].mean(axis=1)
+            _put_cell_means(self.gk.x.array, on["dofs0"], gn, cells)
         pred, corr = active.predictor, active.forms[1:]
         _zero_blocks(self.b_pred.array, on["dof0"], 3)
         pred.assemble(self.b_pred.array)

@@ -16,6 +16,7 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
@@ -32,6 +33,24 @@ from fem_runout.tg2.low_order import (
     velocity,
 )
 from fem_runout.tg2.mass_correction import MassCorrection
+
+
+@numba.njit(cache=True)
+def _gather_state(h, hu, hv, nodes, out):
+    """``out[k] = (h, hu, hv)[nodes[k]]`` (one pass)."""
+    for k in range(nodes.size):
+        i = nodes[k]
+        out[k, 0], out[k, 1], out[k, 2] = h[i], hu[i], hv[i]
+    return out
+
+
+@numba.njit(cache=True)
+def _scatter_state(h, hu, hv, nodes, q):
+    """``(h, hu, hv)[nodes[k]] = q[k]`` (one pass)."""
+    for k in range(nodes.size):
+        i = nodes[k]
+        h[i], hu[i], hv[i] = q[k, 0], q[k, 1], q[k, 2]
+
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
 WET_DEPTH = 1e3
@@ -100,12 +119,13 @@ class Transport:
 
     def state_on(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3) copy of (h, hu, hv) at the local nodes ``nodes``."""
-        return np.stack([self.h.x.array[nodes], self.hu.x.array[nodes],
-                         self.hv.x.array[nodes]], axis=1)
+        return _gather_state(self.h.x.array, self.hu.x.array, self.hv.x.array,
+                             np.asarray(nodes), np.empty((len(nodes), 3)))
 
     def set_state_on(self, nodes: np.ndarray, q: np.ndarray) -> None:
         """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values)."""
-        self.h.x.array[nodes], self.hu.x.array[nodes], self.hv.x.array[nodes] = q.T
+        _scatter_state(self.h.x.array, self.hu.x.array, self.hv.x.array, np.asarray(nodes),
+                       np.asarray(q, dtype=np.float64))
         self._fresh = False
 
     def set_state(self, q: np.ndarray) -> None:
