@@ -21,7 +21,7 @@ import numpy as np
 from fem_runout.mesh import element_masses
 from mpm.projection import blend, node_cells
 
-__all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector", "element_masses"]
+__all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector"]
 
 #: Node rings added around the nodes with sums (the window of the projection).
 WINDOW_RINGS = 24
