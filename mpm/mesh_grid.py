@@ -32,7 +32,8 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization, Side
 from fem_runout.quadmesh import EDGE_CORNERS, KIND_CODES
 from mpm.grid import Basis
-from mpm.mesh_locate import WALK_EDGES, axis_rates, axis_steps, jacobian_det, walk
+from mpm.mesh_clip import seed_quads
+from mpm.mesh_locate import WALK_EDGES, jacobian_det, walk
 from mpm.mesh_weights import domain_basis, point_basis
 
 __all__ = ["MeshBasis", "MeshParticleGrid"]
@@ -92,10 +93,6 @@ class MeshParticleGrid:
         # Particles.transfer_speeds): half a domain's diagonal (<= 0.71 of the longest edge)
         # plus a cell's diagonal (<= 2 edges) is below 3 longest edges, so Δx = 1.5 of it
         self.dx = self.dy = 1.5 * float(np.sqrt((edge**2).sum(axis=-1)).max())
-        # the cells' lengths along their ξ and η axes at the centre (Δx, Δy on a grid)
-        g = self.geo
-        self.extent = np.column_stack([np.hypot(g[:, 0] + 0.5 * g[:, 4], g[:, 1] + 0.5 * g[:, 5]),
-                                       np.hypot(g[:, 2] + 0.5 * g[:, 4], g[:, 3] + 0.5 * g[:, 5])])
         # the CFL length of a cell's particles: the shortest edge of the cell and its
         # neighbours (min(Δx, Δy) on a grid)
         width = np.sqrt((edge**2).sum(axis=-1)).min(axis=1)
@@ -194,51 +191,32 @@ class MeshParticleGrid:
         """``w |det J|`` at the points: the area a quadrature weight stands for."""
         return weights * jacobian_det(self.geo, cell, xi, eta)
 
-    def split_limits(self, cell: np.ndarray, per_direction: int
-                     ) -> tuple[np.ndarray, np.ndarray]:
-        """Largest half-widths ``min(s/n, s/2)`` of a domain, ``s`` the cell's length per axis."""
-        f = min(1.0 / per_direction, 0.5)
-        return self.extent[cell, 0] * f, self.extent[cell, 1] * f
+    def centre_jacobians(self) -> np.ndarray:
+        """(n_cells, 4) ``x_ξ, x_η, y_ξ, y_η`` of every cell at its centre."""
+        g = self.geo
+        return np.stack([g[:, 0] + 0.5 * g[:, 4], g[:, 2] + 0.5 * g[:, 4],
+                         g[:, 1] + 0.5 * g[:, 5], g[:, 3] + 0.5 * g[:, 5]], axis=1)
 
-    def aspect(self, cell: np.ndarray) -> np.ndarray:
-        """Length along ξ over length along η of the cells (a domain's aspect unit)."""
-        return self.extent[cell, 0] / self.extent[cell, 1]
+    def seed_domains(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray,
+                     per_direction: int) -> tuple[np.ndarray, ...]:
+        """Sub-cells centred at ``(ξ, η)`` as domains: ``(ξ_c, η_c, area, quad)``.
 
-    def seed_widths(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray,
-                    per_direction: int) -> tuple[np.ndarray, np.ndarray]:
-        """Half-widths of a sub-cell's domain at seeding: ``|∂x/∂ξ| / (2 n)`` and along η."""
-        g = self.geo[cell]
-        along_xi = np.hypot(g[:, 0] + g[:, 4] * eta, g[:, 1] + g[:, 5] * eta)
-        along_eta = np.hypot(g[:, 2] + g[:, 4] * xi, g[:, 3] + g[:, 5] * xi)
-        return along_xi / (2 * per_direction), along_eta / (2 * per_direction)
+        See :func:`mpm.mesh_clip.seed_quads`: the particles move to the centroids.
+        """
+        return seed_quads(self.geo, np.ascontiguousarray(cell), np.ascontiguousarray(xi),
+                          np.ascontiguousarray(eta), 0.5 / per_direction)
 
     def displace(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, dx: np.ndarray,
                  dy: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Move points by ``(dx, dy)`` [m]: ``(cell, ξ, η, out, swap)``.
+        """Move points by ``(dx, dy)`` [m]: ``(cell, ξ, η, out, None)``.
 
-        ``out``: left through an open edge; ``swap``: the new cell's axes are swapped
-        relative to the old one's (:func:`mpm.mesh_locate.walk`).
+        ``out``: left through an open edge (:func:`mpm.mesh_locate.walk`). The domains are
+        physical quadrilaterals, so a new cell's axes swap nothing (the grid's last item).
         """
-        return walk(self.geo, self.origin, self.neighbour, self.edge_kind,
-                    np.ascontiguousarray(cell), np.ascontiguousarray(xi, dtype=float),
-                    np.ascontiguousarray(eta, dtype=float), np.ascontiguousarray(dx, float),
-                    np.ascontiguousarray(dy, float))
-
-    def shift_along(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, axis: int,
-                    dist: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Move points by ``dist`` along their cell's axis (0: ξ, 1: η), inside the mesh.
-
-        Returns ``(cell, ξ, η, swap)``.
-        """
-        cell = np.ascontiguousarray(cell)
-        xi, eta = np.ascontiguousarray(xi, float), np.ascontiguousarray(eta, float)
-        dx, dy = axis_steps(self.geo, cell, xi, eta, np.ascontiguousarray(dist, float), axis)
-        c, a, b, _, swap = self.displace(cell, xi, eta, dx, dy)
-        return c, a, b, swap
-
-    def axis_rates(self, p, grad: np.ndarray) -> np.ndarray:
-        """Stretch rates along the particles' cell axes (the diagonal the splitter reads)."""
-        return axis_rates(self.geo, p.cell, p.xi, p.eta, grad)
+        return (*walk(self.geo, self.origin, self.neighbour, self.edge_kind,
+                      np.ascontiguousarray(cell), np.ascontiguousarray(xi, dtype=float),
+                      np.ascontiguousarray(eta, dtype=float), np.ascontiguousarray(dx, float),
+                      np.ascontiguousarray(dy, float)), None)
 
     def basis(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> Basis:
         """Q1 basis at points of this rank's owned cells, on local dofs (seeding)."""
@@ -258,12 +236,12 @@ class MeshParticleGrid:
     def particle_basis(self, p) -> MeshBasis:
         """Return the domain weights of particles ``p`` on global nodes (:func:`domain_basis`)."""
         n = p.cell.size
+        quad = p.quad()
         if self._offsets.size < n + 1:
             self._offsets = np.empty(2 * n + 1, dtype=np.int64)
         while True:
             used = domain_basis(self.geo, self.origin, self.corners, self.neighbour,
-                                self.edge_kind, p.cell, p.xi, p.eta, p.lx, p.ly,
-                                self._offsets, *self._buffers)
+                                p.cell, p.xi, p.eta, quad, self._offsets, *self._buffers)
             if used >= 0:
                 break
             size = 2 * max(self._buffers[0].size, 8 * n)
@@ -279,7 +257,12 @@ class MeshParticleGrid:
 
 
 class MeshBasis:
-    """Domain weights at the particles (:func:`mpm.mesh_weights.domain_basis`), kernel input."""
+    """Domain weights at the particles (:func:`mpm.mesh_weights.domain_basis`), kernel input.
+
+    Attributes:
+        arrays: ``(offsets, nodes, S, ∇S, x_i - x_p)``, the kernels' basis argument: per
+            entry the node, its weight, its weight's gradient and its offset from the particle.
+    """
 
     def __init__(self, *arrays: np.ndarray) -> None:
         self.arrays = arrays

@@ -8,13 +8,11 @@ as a cell and reference coordinates (:mod:`mpm.mesh_grid`); their weights are in
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
-__all__ = ["INSIDE", "MAX_WALK", "NEWTON", "NEWTON_STEP", "WALK_EDGES", "axis_rates",
-           "axis_steps", "jacobian_det", "map_point", "newton", "tangents", "walk", "walk_from"]
+__all__ = ["INSIDE", "MAX_WALK", "NEWTON", "NEWTON_STEP", "WALK_EDGES", "inverse_map",
+           "jacobian_det", "map_point", "newton", "tangents", "walk", "walk_from"]
 
 #: Corners of the four edges in the walk's order: ξ = 0, ξ = 1, η = 0, η = 1.
 WALK_EDGES = np.array([[0, 2], [1, 3], [0, 1], [2, 3]], dtype=np.int64)
@@ -63,7 +61,7 @@ def newton(geo, k, rx, ry, a, b):
 
 
 @numba.njit(cache=True, inline="always")
-def _estimate(geo, k, tx, ty):
+def inverse_map(geo, k, tx, ty):
     """Find the reference coordinates of the point ``t`` (relative to cell ``k``'s origin).
 
     Newton from the affine estimate at the centre: ``(ξ, η, converged)`` (the estimate if not).
@@ -103,14 +101,14 @@ def walk_from(geo, origin, neighbour, kind, k, a, b, ok, tx, ty):
 
     ``(a, b)`` are its coordinates in ``k`` if ``ok``; the result is as :func:`_locate`'s.
 
-    In each cell the point's coordinates come from Newton (:func:`_estimate`); outside, the
+    In each cell the point's coordinates come from Newton (:func:`inverse_map`); outside, the
     walk crosses the edge it lies farthest beyond that has a cell behind it, and stops at the
     boundary only when every edge the point lies beyond is a boundary edge.
     """
     code = 0
     for _ in range(MAX_WALK):
         if not ok:
-            a, b, ok = _estimate(geo, k, tx, ty)
+            a, b, ok = inverse_map(geo, k, tx, ty)
         e, best, wall, wall_v = -1, INSIDE, -1, INSIDE
         for s in range(4):
             v = -a if s == 0 else (a - 1.0 if s == 1 else (-b if s == 2 else b - 1.0))
@@ -137,33 +135,17 @@ def tangents(geo, k, a, b):
             geo[k, 2] + geo[k, 4] * a, geo[k, 3] + geo[k, 5] * a)
 
 
-@numba.njit(cache=True, inline="always")
-def _swapped(geo, k, a0, b0, m, a1, b1):
-    """Whether cell ``m``'s η axis at ``(a1, b1)`` is closer to ``k``'s ξ axis than its ξ axis."""
-    kx, ky, _, _ = tangents(geo, k, a0, b0)
-    mx, my, nx, ny = tangents(geo, m, a1, b1)
-    along = abs(kx * mx + ky * my) / math.sqrt(mx * mx + my * my)
-    across = abs(kx * nx + ky * ny) / math.sqrt(nx * nx + ny * ny)
-    return across > along
-
-
 @numba.njit(cache=True)
 def walk(geo, origin, neighbour, kind, cell, xi, eta, dx, dy):
-    """Move points by ``(dx, dy)``: ``(cell, ξ, η, out, swap)``.
-
-    ``out``: left through an open edge; ``swap``: the new cell's axes are the old ones
-    swapped (a particle domain's half-widths along ξ and η trade places).
-    """
+    """Move points by ``(dx, dy)``: ``(cell, ξ, η, out)``; ``out``: left through an open edge."""
     n = cell.size
     c_out, a_out, b_out = cell.copy(), xi.copy(), eta.copy()
-    out, swap = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
+    out = np.zeros(n, dtype=np.bool_)
     for p in range(n):
         k, a, b, code = _locate(geo, origin, neighbour, kind, cell[p], xi[p], eta[p],
                                 dx[p], dy[p])
         c_out[p], a_out[p], b_out[p], out[p] = k, a, b, code == 1
-        if k != cell[p]:
-            swap[p] = _swapped(geo, cell[p], xi[p], eta[p], k, a, b)
-    return c_out, a_out, b_out, out, swap
+    return c_out, a_out, b_out, out
 
 
 @numba.njit(cache=True)
@@ -174,31 +156,3 @@ def jacobian_det(geo, cell, xi, eta):
         j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
         out[p] = abs(j00 * j11 - j01 * j10)
     return out
-
-
-@numba.njit(cache=True)
-def axis_rates(geo, cell, xi, eta, grad):
-    """Stretch rates along the cells' axes, ``t̂·∇v·t̂`` for ``t̂`` along ξ and along η.
-
-    Returned as the diagonal of an (n, 2, 2) array (what the splitter reads).
-    """
-    out = np.zeros((cell.size, 2, 2))
-    for p in range(cell.size):
-        j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
-        for d, (tx, ty) in enumerate(((j00, j10), (j01, j11))):
-            s = 1.0 / (tx * tx + ty * ty)
-            out[p, d, d] = s * (tx * (grad[p, 0, 0] * tx + grad[p, 0, 1] * ty)
-                                + ty * (grad[p, 1, 0] * tx + grad[p, 1, 1] * ty))
-    return out
-
-
-@numba.njit(cache=True)
-def axis_steps(geo, cell, xi, eta, dist, axis):
-    """Displacements ``dist t̂`` along each point's cell axis (0: ξ, 1: η): ``(dx, dy)``."""
-    dx, dy = np.empty(cell.size), np.empty(cell.size)
-    for p in range(cell.size):
-        j00, j10, j01, j11 = tangents(geo, cell[p], xi[p], eta[p])
-        tx, ty = (j00, j10) if axis == 0 else (j01, j11)
-        s = dist[p] / math.sqrt(tx * tx + ty * ty)
-        dx[p], dy[p] = s * tx, s * ty
-    return dx, dy

@@ -1,25 +1,32 @@
 """GIMP weights of DAMPM's particle domains on a quadrilateral mesh (issue 17).
 
-A particle's domain is a rectangle in its cell's reference coordinates, cut at the cell's
-edges; each piece is integrated with the 2 × 2 Gauss rule of the cell's (extended) map and
-its points located in their own cells (:mod:`mpm.mesh_locate`). See :func:`domain_basis`
-and docs/meshes.md, "DAMPM on a gmsh mesh".
+A particle's domain is a convex quadrilateral in physical space, cut by the cells it
+overlaps (:mod:`mpm.mesh_clip`); the weights are the domain averages of the Q1 basis and its
+gradient. See
+:func:`domain_basis` and docs/meshes.md, "DAMPM on a gmsh mesh".
 """
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
-from mpm.mesh_locate import INSIDE, map_point, newton, tangents, walk_from
+from mpm.mesh_clip import (
+    MAX_VISITED,
+    cell_polygon,
+    clip,
+    convex_parts,
+    crossed_sides,
+    polygon_area,
+    quad_points,
+)
+from mpm.mesh_locate import map_point, tangents
 
 __all__ = ["MAX_CELLS", "domain_basis", "point_basis"]
 
 #: Most cells a particle domain reaches (4 around a regular vertex; up to 6 at a vertex
-#: with 5 or 6 cells).
-MAX_CELLS = 8
+#: with 5 or 6 cells; more for a domain stretched along the flow before it is split).
+MAX_CELLS = 12
 
 
 @numba.njit(cache=True, inline="always")
@@ -60,92 +67,97 @@ def _add(geo, corners, k, a, b, w, px, py, ox, oy, nodes, N, dN, rel, p, q0):
 
 
 @numba.njit(cache=True, inline="always")
-def _breaks(lo, hi, out):
-    """``lo``, the cell edges 0 and 1 strictly inside ``(lo, hi)``, ``hi``; returns the count."""
-    out[0] = lo
-    m = 1
-    for edge in (0.0, 1.0):
-        if lo < edge < hi:
-            out[m] = edge
-            m += 1
-    out[m] = hi
-    return m + 1
+def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
+                     nodes, N, dN, rel, work, mom):
+    """Fill the scratch rows ``0 .. 4 n - 1`` of one particle; returns ``n`` (cells reached).
 
-
-@numba.njit(cache=True, inline="always")
-def _particle_domain(geo, origin, corners, neighbour, kind, k, x0, y0, lx, ly, px, py,
-                     nodes, N, dN, rel, seen, bx, by, mom):
-    """Fill the scratch rows ``0 .. 4 n - 1`` of one particle; returns ``n`` (cells reached)."""
-    if lx == 0.0 and ly == 0.0:
-        _add(geo, corners, k, x0, y0, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
-        return 1
-    r = 0.5 / math.sqrt(3.0)
-    t00, t10, t01, t11 = tangents(geo, k, x0, y0)
-    a = lx / math.sqrt(t00 * t00 + t10 * t10)
-    b = ly / math.sqrt(t01 * t01 + t11 * t11)
-    nbx, nby = _breaks(x0 - a, x0 + a, bx), _breaks(y0 - b, y0 + b, by)
-    n_seen, total = 0, 0.0
-    for ix in range(nbx - 1):
-        for iy in range(nby - 1):
-            du, dv = bx[ix + 1] - bx[ix], by[iy + 1] - by[iy]
-            last, la, lb = -1, 0.5, 0.5
-            for g in range(4):
-                s = 0.5 * (bx[ix] + bx[ix + 1]) + (2.0 * (g % 2) - 1.0) * r * du
-                t = 0.5 * (by[iy] + by[iy + 1]) + (2.0 * (g // 2) - 1.0) * r * dv
-                j00, j10, j01, j11 = tangents(geo, k, s, t)
-                w = 0.25 * du * dv * abs(j00 * j11 - j01 * j10)
-                m, sa, sb = k, s, t
-                if not (0.0 <= s <= 1.0 and 0.0 <= t <= 1.0):
-                    m, sa, sb, code = _outside_point(geo, origin, neighbour, kind, k, s, t,
-                                                     last, la, lb)
-                    if code != 0:
-                        continue  # beyond the mesh: the domain is clipped there
-                    last, la, lb = m, sa, sb
-                slot = 0
-                while slot < n_seen and seen[slot] != m:
-                    slot += 1
-                if slot == n_seen:
-                    if n_seen == MAX_CELLS:
-                        continue
-                    seen[slot] = m
-                    n_seen += 1
-                    for c in range(8):
-                        mom[slot, c] = 0.0
-                _moments(geo, m, sa, sb, w, mom, slot)
-                total += w
-    for slot in range(n_seen):
-        m = seen[slot]
-        _from_moments(geo, corners, m, mom, slot, 1.0 / total, px,
-                      py, origin[m, 0] - origin[k, 0], origin[m, 1] - origin[k, 1], nodes, N,
-                      dN, rel)
-    return n_seen
-
-
-@numba.njit(cache=True, inline="always")
-def _outside_point(geo, origin, neighbour, kind, k, s, t, last, la, lb):
-    """Locate the point ``(s, t)`` of cell ``k``'s extended map: ``(cell, ξ, η, code)``.
-
-    First by Newton in ``last`` (the cell of the piece's previous point, at ``(la, lb)``),
-    else by a walk from ``k`` (:func:`mpm.mesh_locate.walk_from`).
+    ``quad``: the domain's corner offsets (8); ``work``: the scratch of :func:`domain_basis`.
     """
-    mx, my = map_point(geo, k, s, t)
-    if last >= 0:
-        rx = mx + (origin[k, 0] - origin[last, 0])
-        ry = my + (origin[k, 1] - origin[last, 1])
-        lx0, ly0 = map_point(geo, last, la, lb)
-        sa, sb, ok = newton(geo, last, rx - lx0, ry - ly0, la, lb)
-        if ok and -INSIDE <= sa <= 1.0 + INSIDE and -INSIDE <= sb <= 1.0 + INSIDE:
-            return last, min(max(sa, 0.0), 1.0), min(max(sb, 0.0), 1.0), 0
-    return walk_from(geo, origin, neighbour, kind, k, s, t, True, mx, my)
+    dx, dy, sx, sy, cx, cy, qa, qb, qw, seen, tx, ty, tn, cross = work
+    if _is_point(quad):
+        _add(geo, corners, k, xi, eta, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
+        return 1
+    seen[0], n_seen, head, slots, total = k, 1, 0, 0, 0.0
+    while head < n_seen and slots < MAX_CELLS:
+        m = seen[head]
+        head += 1
+        reversed_order = cell_polygon(geo, origin, k, m, cx, cy)
+        held, inside = False, False
+        for c in range(4):
+            sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
+        crossed_sides(sx, sy, cx, cy, reversed_order, cross)
+        for part in range(convex_parts(cx, cy, tx, ty, tn)):
+            if part == 1:
+                for e in range(4):  # a reflex cell: every side may matter
+                    cross[e] = True
+            for c in range(4):
+                sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
+            if polygon_area(sx, sy, 4) < 0.0:
+                sx[1], sx[3], sy[1], sy[3] = sx[3], sx[1], sy[3], sy[1]
+            n, cut = clip(sx, sy, 4, tx[part], ty[part], tn[part], dx, dy)
+            inside = inside or not cut
+            if n < 3 or polygon_area(sx, sy, n) <= 0.0:
+                continue
+            if not held:
+                held = True
+                for c in range(8):
+                    mom[slots, c] = 0.0
+            for q in range(quad_points(geo, origin, k, m, sx, sy, n, qa, qb, qw)):
+                _moments(geo, m, qa[q], qb[q], qw[q], mom, slots)
+                total += qw[q]
+        if inside and held:  # the domain lies in this cell: no other cell holds any of it
+            seen[head - 1], slots = -1 - m, slots + 1
+            break
+        if held or head == 1:  # the cells beside a piece (or the particle's cell) may hold more
+            for e in range(4):
+                nb = neighbour[m, e]
+                if not cross[e]:  # the domain lies on this side of it
+                    continue
+                if nb >= 0 and n_seen < MAX_VISITED and not _member(seen, n_seen, nb):
+                    seen[n_seen] = nb
+                    n_seen += 1
+        if held:
+            seen[head - 1], slots = -1 - m, slots + 1  # marks the cell as holding a slot
+    if slots == 0:  # the domain misses the mesh (beyond a wall): the point values
+        _add(geo, corners, k, xi, eta, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
+        return 1
+    used = 0
+    for v in range(n_seen):
+        if seen[v] < 0:
+            m = -1 - seen[v]
+            seen[v] = m
+            _from_moments(geo, corners, m, mom, used, 1.0 / total, px, py,
+                          origin[m, 0] - origin[k, 0], origin[m, 1] - origin[k, 1], nodes, N,
+                          dN, rel)
+            used += 1
+    return used
+
+
+@numba.njit(cache=True, inline="always")
+def _is_point(quad):
+    """Whether every corner offset is zero (a point particle)."""
+    for c in range(8):
+        if quad[c] != 0.0:
+            return False
+    return True
+
+
+@numba.njit(cache=True, inline="always")
+def _member(seen, n, m):
+    """Whether cell ``m`` (or its slot mark ``-1 - m``) is among ``seen[:n]``."""
+    for v in range(n):
+        if seen[v] == m or seen[v] == -1 - m:
+            return True
+    return False
 
 
 @numba.njit(cache=True, inline="always")
 def _moments(geo, m, a, b, w, mom, slot):
-    """Add a Gauss point ``(a, b)`` of cell ``m`` with weight ``w`` to the slot's moments.
+    """Add a quadrature point ``(a, b)`` of cell ``m``, weight ``w``, to the slot's moments.
 
-    ``Σ w, Σ w a, Σ w b, Σ w a b`` and the same with ``w / det J``: the domain's ``Σ w N_c``
-    and ``Σ w ∇N_c`` are linear in them (:func:`_from_moments`), so a point costs eight
-    sums instead of twelve weights.
+    ``Σ w, Σ w a, Σ w b, Σ w a b`` and the same with ``o = w / det J``: the domain's
+    ``Σ w N_c`` and ``Σ w ∇N_c`` are linear in them (:func:`_from_moments`), so a point costs
+    eight sums instead of twelve weights.
     """
     j00, j10, j01, j11 = tangents(geo, m, a, b)
     o = w / (j00 * j11 - j01 * j10)
@@ -176,14 +188,8 @@ def _from_moments(geo, corners, m, mom, slot, scale, px, py, ox, oy, nodes, N, d
     N[0, q0 + 2] = scale * (sb - sab)
     N[0, q0 + 3] = scale * sab
     for c in range(4):
-        al = -1.0 if c == 0 else (1.0 if c == 1 else 0.0)
-        be = 1.0 if (c == 0 or c == 3) else -1.0
-        ga = -1.0 if c == 0 else (1.0 if c == 2 else 0.0)
-        de = 1.0 if (c == 0 or c == 3) else -1.0
-        dN[0, q0 + c, 0] = scale * ((g3 * al - g1 * ga) * w0 + (g5 * al - g1 * de) * wa
-                                    + (g3 * be - g5 * ga) * wb + (g5 * be - g5 * de) * wab)
-        dN[0, q0 + c, 1] = scale * ((g0 * ga - g2 * al) * w0 + (g0 * de - g4 * al) * wa
-                                    + (g4 * ga - g2 * be) * wb + (g4 * de - g4 * be) * wab)
+        gx, gy = _gradient_sum(geo, m, c, w0, wa, wb, wab)
+        dN[0, q0 + c, 0], dN[0, q0 + c, 1] = scale * gx, scale * gy
         nodes[0, q0 + c] = corners[m, c]
     bx, by = ox - px, oy - py
     rel[0, q0, 0], rel[0, q0, 1] = bx, by
@@ -193,30 +199,45 @@ def _from_moments(geo, corners, m, mom, slot, scale, px, py, ox, oy, nodes, N, d
     rel[0, q0 + 3, 1] = (g1 + g3 + g5) + by
 
 
+@numba.njit(cache=True, inline="always")
+def _gradient_sum(geo, m, c, w0, wa, wb, wab):
+    """``Σ o adj(J)^T ∇_ξ N_c`` of corner ``c`` of cell ``m`` from the sums ``Σ o {1, a, b, ab}``.
+
+    ``∂_ξ N_c = α_c + β_c b``, ``∂_η N_c = γ_c + δ_c a``; ``adj J`` is linear in ``a, b``.
+    """
+    g0, g1, g2, g3, g4, g5 = geo[m, 0], geo[m, 1], geo[m, 2], geo[m, 3], geo[m, 4], geo[m, 5]
+    al = -1.0 if c == 0 else (1.0 if c == 1 else 0.0)
+    be = 1.0 if (c == 0 or c == 3) else -1.0
+    ga = -1.0 if c == 0 else (1.0 if c == 2 else 0.0)
+    de = 1.0 if (c == 0 or c == 3) else -1.0
+    return ((g3 * al - g1 * ga) * w0 + (g5 * al - g1 * de) * wa
+            + (g3 * be - g5 * ga) * wb + (g5 * be - g5 * de) * wab,
+            (g0 * ga - g2 * al) * w0 + (g0 * de - g4 * al) * wa
+            + (g4 * ga - g2 * be) * wb + (g4 * de - g4 * be) * wab)
+
+
 @numba.njit(cache=True)
-def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, offsets, nodes,
-                 S, dS, rel):
+def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
+                 rel):
     """Weights of the particle domains: GIMP on a quadrilateral mesh.
 
-    A particle's domain is the rectangle ``[ξ_p ± a] × [η_p ± b]`` of its cell's reference
-    coordinates, ``a = l_x / |∂x/∂ξ|``, ``b = l_y / |∂x/∂η|`` (``l_x, l_y``: half-widths along
-    the cell's axes [m]). It is cut at the cell's edges; each piece gets the 2 × 2 Gauss rule
-    in the cell's (extended) map, weights ``|det J|``, its points located in their own cells
-    (points beyond the mesh boundary are dropped), and
+    A particle's domain is the convex quadrilateral ``x_p + quad[p]`` (corner offsets
+    ``q0x, q0y, .. q3x, q3y``). It is cut by the cells it overlaps and each piece integrated
+    with Dunavant's seven-point rule per triangle (:mod:`mpm.mesh_clip`), weights ``w_q`` the
+    physical areas, and
 
         S_ip = Σ_q w_q N_i(x_q) / Σ_q w_q,    ∇S_ip = Σ_q w_q ∇N_i(x_q) / Σ_q w_q:
 
-    the domain averages of GIMP, exact for a domain inside its cell (the integrands are
-    polynomials of degree <= 3 per reference direction), continuous as a domain crosses an
-    edge (a new piece starts with zero width), ``Σ_i S_ip = 1`` and ``Σ_i ∇S_ip = 0``.
-    Domains that tile the cells (the uniform seeding) balance the pressure of a uniform layer
-    exactly, as on the grid. A point particle (``l = 0``) gets the point values of seed
-    eq. 33.
+    the domain averages of GIMP, exact where the cells are parallelograms, continuous as a
+    domain moves (a new piece starts with zero area), ``Σ_i S_ip = 1`` and
+    ``Σ_i ∇S_ip = 0``. Parts of a domain beyond the mesh are dropped. Domains that tile the
+    material (the uniform seeding: the sub-cells) balance the pressure of a uniform layer
+    exactly. A point particle (all offsets zero) gets the point values of seed eq. 33.
 
-    The results go to ``offsets`` (n + 1) and the buffers ``nodes, S, dS, rel`` (kept by the
-    caller: fresh arrays cost more in page faults than the computation): particle ``p``'s
-    entries are ``offsets[p] .. offsets[p + 1] - 1``, one per node its domain reaches (the
-    corners of at most :data:`MAX_CELLS` cells).
+    The results go to ``offsets`` (n + 1) and the buffers
+    ``nodes, S, dS, rel`` (kept by the caller: fresh arrays cost more in page faults
+    than the computation): particle ``p``'s entries are ``offsets[p] .. offsets[p + 1] - 1``,
+    one per node its domain reaches (the corners of at most :data:`MAX_CELLS` cells).
 
     Returns:
         The number of entries used, or -1 if the buffers are too short (call again with
@@ -228,17 +249,18 @@ def domain_basis(geo, origin, corners, neighbour, kind, cell, xi, eta, lx, ly, o
     w = 4 * MAX_CELLS
     snodes = np.empty((1, w), dtype=np.int64)
     sN, sdN, srel = np.zeros((1, w)), np.zeros((1, w, 2)), np.zeros((1, w, 2))
-    seen = np.empty(MAX_CELLS, dtype=np.int64)
     mom = np.empty((MAX_CELLS, 8))
-    bx, by = np.empty(4), np.empty(4)
+    work = (np.empty(16), np.empty(16), np.empty(16), np.empty(16), np.empty(4), np.empty(4),
+            np.empty(64), np.empty(64), np.empty(64),
+            np.empty(MAX_VISITED, dtype=np.int64), np.empty((2, 4)), np.empty((2, 4)),
+            np.empty(2, dtype=np.int64), np.zeros(4, dtype=np.bool_))
     for p in range(n):
         k = cell[p]
         px, py = map_point(geo, k, xi[p], eta[p])
         for q in range(4):
             sN[0, q], sdN[0, q, 0], sdN[0, q, 1] = 0.0, 0.0, 0.0
-        used = 4 * _particle_domain(geo, origin, corners, neighbour, kind, k, xi[p], eta[p],
-                                    lx[p], ly[p], px, py, snodes, sN, sdN, srel, seen, bx, by,
-                                    mom)
+        used = 4 * _particle_domain(geo, origin, corners, neighbour, k, xi[p], eta[p], quad[p],
+                                    px, py, snodes, sN, sdN, srel, work, mom)
         start = offsets[p]
         if start + used > cap:
             return -1

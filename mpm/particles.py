@@ -22,11 +22,13 @@ import numpy as np
 from mpm.grid import ParticleGrid
 from mpm.kernels import interpolate
 
-__all__ = ["FLOAT_FIELDS", "Particles", "seed_particles"]
+__all__ = ["FLOAT_FIELDS", "QUAD_FIELDS", "Particles", "seed_particles"]
 
+#: Corner offsets of a particle's quadrilateral domain on a gmsh mesh.
+QUAD_FIELDS = ("q0x", "q0y", "q1x", "q1y", "q2x", "q2y", "q3x", "q3y")
 #: Per-particle float arrays (the ``id`` is int64).
 FLOAT_FIELDS = ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy",
-                "cxx", "cxy", "cyx", "cyy")
+                "cxx", "cxy", "cyx", "cyy", *QUAD_FIELDS)
 
 
 @dataclass
@@ -45,6 +47,9 @@ class Particles:
         id: Global particle id.
         cxx, cxy, cyx, cyy: Affine velocity ``C_p`` of APIC [1/s] (``C_ab = ∂v_a/∂x_b`` of
             the grid velocity at the particle; zero with the FLIP transfer). Default zeros.
+        q0x, q0y, .. q3x, q3y: On a gmsh mesh, the corners of the particle's domain, a convex
+            quadrilateral, as offsets from the particle [m] (counter-clockwise; all zero: a
+            point particle; :mod:`mpm.mesh_clip`). Unused on the grid. Default zeros.
     """
 
     xi: np.ndarray
@@ -64,9 +69,17 @@ class Particles:
     cxy: np.ndarray | None = None
     cyx: np.ndarray | None = None
     cyy: np.ndarray | None = None
+    q0x: np.ndarray | None = None
+    q0y: np.ndarray | None = None
+    q1x: np.ndarray | None = None
+    q1y: np.ndarray | None = None
+    q2x: np.ndarray | None = None
+    q2y: np.ndarray | None = None
+    q3x: np.ndarray | None = None
+    q3y: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in ("cxx", "cxy", "cyx", "cyy"):
+        for name in ("cxx", "cxy", "cyx", "cyy", *QUAD_FIELDS):
             if getattr(self, name) is None:
                 setattr(self, name, np.zeros(self.xi.size))
 
@@ -81,6 +94,15 @@ class Particles:
     def area(self) -> np.ndarray:
         """Column area ``A_p = V_p / h_p`` [m²]."""
         return self.volume / self.h
+
+    def quad(self) -> np.ndarray:
+        """(n, 8) the domain's corner offsets ``q0x, q0y, .. q3x, q3y``."""
+        return np.stack([getattr(self, name) for name in QUAD_FIELDS], axis=1)
+
+    def set_quad(self, quad: np.ndarray) -> None:
+        """Set the corner offsets from an (n, 8) array."""
+        for k, name in enumerate(QUAD_FIELDS):
+            setattr(self, name, np.ascontiguousarray(quad[:, k]))
 
     def affine(self) -> np.ndarray:
         """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC)."""
@@ -126,7 +148,7 @@ class Particles:
         return Particles(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
     def pack(self) -> np.ndarray:
-        """(n, 17) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
+        """(n, 25) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
         out = np.empty((len(self), len(FLOAT_FIELDS) + 2))
         for k, name in enumerate(FLOAT_FIELDS):
             out[:, k] = getattr(self, name)
@@ -136,11 +158,16 @@ class Particles:
 
     @classmethod
     def unpack(cls, rows: np.ndarray) -> Particles:
-        """Inverse of :meth:`pack`; also reads the 13-column rows of older checkpoints."""
+        """Inverse of :meth:`pack`; also reads the 13- and 17-column rows of older checkpoints.
+
+        Rows from before APIC get ``C_p = 0``; rows from before the quadrilateral domains get
+        point domains on a gmsh mesh (on the grid the corners are unused).
+        """
         rows = np.ascontiguousarray(rows)
-        if rows.ndim == 2 and rows.shape[1] == len(FLOAT_FIELDS) - 2:  # before APIC: no C_p
-            rows = np.concatenate([rows[:, :-2], np.zeros((rows.shape[0], 4)), rows[:, -2:]],
-                                  axis=1)
+        for old, missing in ((13, 4), (17, len(QUAD_FIELDS))):
+            if rows.ndim == 2 and rows.shape[1] == old:
+                rows = np.concatenate([rows[:, :-2], np.zeros((rows.shape[0], missing)),
+                                       rows[:, -2:]], axis=1)
         rows = rows.reshape(-1, len(FLOAT_FIELDS) + 2)
         data = {name: rows[:, k].copy() for k, name in enumerate(FLOAT_FIELDS)}
         cell = np.ascontiguousarray(rows[:, -2]).view(np.int64).copy()
@@ -179,6 +206,8 @@ def seed_particles(
     ``uniform``: particles at the centres of the ``n × n`` sub-cells, areas ``|K|/n²`` and
     domains equal to the sub-cells (they tile the material; the lattice is alias-free on the
     grid, which makes DAMPM converge at first order on Ritter's dam break, docs/dampm.md).
+    On a gmsh mesh the sub-cells are the images of the reference ones, the particles sit at
+    their centroids and carry them as quadrilateral domains (:mod:`mpm.mesh_clip`).
     ``gauss``: particles at the tensor Gauss–Legendre points with areas ``A_p = w_p |K|``:
     with two or more points per direction the particle quadrature is exact for ``∫ φ_i φ_j``,
     so the consistent L2 projection of the particle volumes returns the nodal initial depth
@@ -218,6 +247,9 @@ def seed_particles(
     xi, eta = np.tile(gx.ravel(), index.size), np.tile(gy.ravel(), index.size)
     cell = np.repeat(index, n_loc)
     area = grid.areas(cell, xi, eta, np.tile(wxy, index.size))
+    quad = None
+    if not grid.structured and layout == "uniform":  # the sub-cells, centroids, exact areas
+        xi, eta, area, quad = grid.seed_domains(cell, xi, eta, per_direction)
     pid = (index[:, None] * n_loc + np.arange(n_loc)[None, :]).ravel()
     basis = grid.basis(cell, xi, eta)
     h = interpolate(basis.nodes, basis.N, h_nodes)
@@ -228,10 +260,11 @@ def seed_particles(
     if grid.structured:
         lx, ly = (np.minimum(0.5 / per_direction, np.minimum(r, 1.0 - r)[keep]) * d
                   for r, d in ((xi, grid.dx), (eta, grid.dy)))
-    else:  # a square of the sub-cell's area; Gauss points: point particles (exact lake)
-        lx, ly = grid.seed_widths(cell[keep], xi[keep], eta[keep], per_direction)
-        if layout != "uniform":
-            lx, ly = np.zeros_like(lx), np.zeros_like(ly)
-    return Particles(xi=xi[keep], eta=eta[keep], lx=lx, ly=ly, volume=area[keep] * h[keep],
-                     h=h[keep], u=u, v=v, sxx=zero, syy=zero.copy(), sxy=zero.copy(),
-                     cell=cell[keep].astype(np.int64), id=pid[keep].astype(np.int64))
+    else:  # the sub-cell as a quadrilateral domain; Gauss points: point particles
+        lx, ly = zero.copy(), zero.copy()
+    out = Particles(xi=xi[keep], eta=eta[keep], lx=lx, ly=ly, volume=area[keep] * h[keep],
+                    h=h[keep], u=u, v=v, sxx=zero, syy=zero.copy(), sxy=zero.copy(),
+                    cell=cell[keep].astype(np.int64), id=pid[keep].astype(np.int64))
+    if quad is not None:
+        out.set_quad(quad[keep])
+    return out

@@ -54,7 +54,8 @@ from mpm.nodal import (
     open_side_push,
     zero_wall_velocity,
 )
-from mpm.particles import Particles
+from mpm.particles import FLOAT_FIELDS, Particles
+from mpm.quad_split import QuadSplitter
 from mpm.split import DomainSplitter
 
 __all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
@@ -123,7 +124,8 @@ class MPMSolver:
         self.buffers = NodeBuffers(self.nodal.n_nodes)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
-        self.splitter = DomainSplitter(grid, per_direction, n_ids, thin_depth)
+        splitter = DomainSplitter if disc.structured else QuadSplitter
+        self.splitter = splitter(grid, per_direction, n_ids, thin_depth)
         self.outflow_volume = 0.0
         self.sent = 0
         self._snap_store: dict[str, np.ndarray] | None = None  # reused by :meth:`snapshot`
@@ -252,7 +254,8 @@ class MPMSolver:
 
     def load_state(self, state: dict) -> None:
         """Continue from :meth:`save_state` (collective; any rank count)."""
-        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, 17))
+        width = len(FLOAT_FIELDS) + 2
+        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, width))
         p = Particles.unpack(np.asarray(rows, dtype=np.float64))
         self.particles, _ = migrate(self.grid, p, balanced_destinations(self.grid, p))
         self.outflow_volume = float(state["outflow"])

@@ -44,6 +44,8 @@ __all__ = ["MAX_ASPECT", "DomainSplitter"]
 
 #: Largest aspect ratio ``l_x/l_y`` (or ``l_y/l_x``) of a particle domain.
 MAX_ASPECT = 4.0
+#: The half-widths along x and y.
+_KEYS = ("lx", "ly")
 
 
 @numba.njit(cache=True)
@@ -110,8 +112,8 @@ class DomainSplitter:
         """
         parts = [p]
         while self._any_wide(parts):  # the usual step: one small message, nothing to split
-            parts = self._split_axis(parts, "lx", 0)
-            parts = self._split_axis(parts, "ly", 1)
+            parts = self._split_axis(parts, 0)
+            parts = self._split_axis(parts, 1)
         return parts[0] if len(parts) == 1 else Particles.concatenate(parts)
 
     def _any_wide(self, parts: list[Particles]) -> bool:
@@ -122,12 +124,16 @@ class DomainSplitter:
             wide = wide or bool((p.lx > lim_x).any() or (p.ly > lim_y).any())
         return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
 
-    def _split_axis(self, parts: list[Particles], key: str, axis: int) -> list[Particles]:
+    def _wide(self, p: Particles, axis: int) -> np.ndarray:
+        """Return the indices of the particles wider than the limit along ``axis`` (0: x, 1: y)."""
+        return np.flatnonzero(getattr(p, _KEYS[axis]) > self.limits(p)[axis])
+
+    def _split_axis(self, parts: list[Particles], axis: int) -> list[Particles]:
         """Split the particles of ``parts`` (one set, in order) along an axis; append children.
 
         New ids follow the parents' ids over all ranks (the same on any rank count).
         """
-        idx = [np.flatnonzero(getattr(p, key) > self.limits(p)[axis]) for p in parts]
+        idx = [self._wide(p, axis) for p in parts]
         mine = np.concatenate([p.id[i] for p, i in zip(parts, idx, strict=True)])
         parents = np.concatenate(self.grid.comm.allgather(mine))
         if parents.size == 0:
@@ -138,12 +144,14 @@ class DomainSplitter:
         children, start = [], 0
         for p, i in zip(parts, idx, strict=True):
             if i.size:  # a rank (or part) that splits nothing copies nothing
-                children.append(self._halve(p, i, key, new_ids[start:start + i.size]))
+                children.append(self._halve(p, i, axis, new_ids[start:start + i.size]))
             start += i.size
         return parts + children
 
-    def _halve(self, p: Particles, idx: np.ndarray, key: str, new_ids: np.ndarray) -> Particles:
-        """Halve particles ``idx`` of ``p`` along ``key`` in place; return the other halves."""
+    def _halve(self, p: Particles, idx: np.ndarray, axis: int, new_ids: np.ndarray
+               ) -> Particles:
+        """Halve particles ``idx`` of ``p`` along ``axis`` in place; return the other halves."""
+        key = _KEYS[axis]
         half = 0.5 * getattr(p, key)[idx]
         getattr(p, key)[idx] = half  # in place: the solver owns the arrays
         p.volume[idx] *= 0.5

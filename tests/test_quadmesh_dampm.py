@@ -51,10 +51,11 @@ def test_a_walk_lands_on_the_displaced_point():
 
 
 def _expanded(g, cell, xi, eta, lx, ly, n_nodes):
-    """Dense (n, n_nodes) weights and gradients of the domain basis."""
+    """Dense (n, n_nodes) weights and gradients of the domain basis (rectangles ``±lx, ±ly``)."""
     from types import SimpleNamespace
 
-    p = SimpleNamespace(cell=cell, xi=xi, eta=eta, lx=lx, ly=ly)
+    quad = np.stack([-lx, -ly, lx, -ly, lx, ly, -lx, ly], axis=1)
+    p = SimpleNamespace(cell=cell, xi=xi, eta=eta, quad=lambda: quad)
     off, nodes, S, dS, _ = g.particle_basis(p).arrays
     W, D = np.zeros((cell.size, n_nodes)), np.zeros((cell.size, n_nodes, 2))
     rows = np.repeat(np.arange(cell.size), np.diff(off))

@@ -51,7 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "meshes.md")
 
 
-def _outline(points: list[list[float]], size: float) -> list[str]:
+def outline_overrides(points: list[list[float]], size: float) -> list[str]:
+    """Case overrides that mesh the polygon ``points`` with gmsh at ``size`` (min ``size/2``)."""
     return ["domain.extent=null", "domain.cells=null", f"domain.outline={points}",
             f"domain.cell_size={size}", f"domain.min_size={size / 2}"]
 
@@ -62,7 +63,7 @@ def thacker_level(n: int, gmsh: bool, comm, method: str) -> dict:
     from fem_runout.config import load_case
     from fem_runout.references import thacker as ref
 
-    over = _outline(BOWL, ref.L / n) if gmsh else []
+    over = outline_overrides(BOWL, ref.L / n) if gmsh else []
     case = load_case(ref.case_dict(n), [*over, f"method={method}"])
     r = run(case, write=False, comm=comm)
     err = None
@@ -87,7 +88,7 @@ def hemisphere_level(size: float, gmsh: bool, comm, method: str) -> dict:
     disc_outline = [[float(round(25 + 25 * math.cos(t), 6)), float(round(25 + 25 * math.sin(t),
                                                                            6))] for t in theta]
     n = round(50 / size)
-    over = _outline(disc_outline, size) if gmsh else [f"domain.cells=[{n},{n}]"]
+    over = outline_overrides(disc_outline, size) if gmsh else [f"domain.cells=[{n},{n}]"]
     keep = KeepSolver()
     r = run(load_case(ROOT / "cases" / "hemisphere.yaml", [*over, f"method={method}"]),
             write=False, comm=comm, callbacks=[keep])
