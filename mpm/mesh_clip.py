@@ -25,7 +25,7 @@ import numpy as np
 from mpm.mesh_locate import inverse_map, map_point, newton
 
 __all__ = ["MAX_VISITED", "cell_polygon", "clip", "convex_parts", "crossed_sides", "polygon_area",
-           "quad_points", "seed_quads"]
+           "polygon_centroid", "quad_points", "seed_quads"]
 
 #: Most cells a domain's search visits (the cells it overlaps and their neighbours).
 MAX_VISITED = 48
@@ -114,6 +114,18 @@ def polygon_area(x, y, n):
         j = i + 1 if i + 1 < n else 0
         s += x[i] * y[j] - x[j] * y[i]
     return 0.5 * s
+
+
+@numba.njit(cache=True, inline="always")
+def polygon_centroid(x, y, n, area):
+    """Centroid of the polygon ``(x, y)[:n]`` of signed area ``area``."""
+    gx, gy = 0.0, 0.0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        cr = x[i] * y[j] - x[j] * y[i]
+        gx += (x[i] + x[j]) * cr
+        gy += (y[i] + y[j]) * cr
+    return gx / (6.0 * area), gy / (6.0 * area)
 
 
 @numba.njit(cache=True, inline="always")
@@ -206,13 +218,7 @@ def seed_quads(geo, cell, xi, eta, half):
         if s < 0.0:
             x[1], x[3], y[1], y[3] = x[3], x[1], y[3], y[1]
             s = -s
-        gx, gy = 0.0, 0.0
-        for i in range(4):
-            j = i + 1 if i < 3 else 0
-            cr = x[i] * y[j] - x[j] * y[i]
-            gx += (x[i] + x[j]) * cr
-            gy += (y[i] + y[j]) * cr
-        gx, gy = gx / (6.0 * s), gy / (6.0 * s)
+        gx, gy = polygon_centroid(x, y, 4, s)
         xo[p], yo[p], _ = inverse_map(geo, k, gx, gy)
         area[p] = s
         for c in range(4):

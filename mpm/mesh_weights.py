@@ -72,8 +72,10 @@ def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
     """Fill the scratch rows ``0 .. 4 n - 1`` of one particle; returns ``n`` (cells reached).
 
     ``quad``: the domain's corner offsets (8); ``work``: the scratch of :func:`domain_basis`.
+    A search from the particle's cell over the neighbours across the sides the domain
+    crosses (:func:`_cell_moments` per cell); a cell holding a piece gets a slot of moments.
     """
-    dx, dy, sx, sy, cx, cy, qa, qb, qw, seen, tx, ty, tn, cross = work
+    seen, cross = work[9], work[13]
     if _is_point(quad):
         _add(geo, corners, k, xi, eta, 1.0, px, py, 0.0, 0.0, nodes, N, dN, rel, 0, 0)
         return 1
@@ -81,39 +83,17 @@ def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
     while head < n_seen and slots < MAX_CELLS:
         m = seen[head]
         head += 1
-        reversed_order = cell_polygon(geo, origin, k, m, cx, cy)
-        held, inside = False, False
-        for c in range(4):
-            sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
-        crossed_sides(sx, sy, cx, cy, reversed_order, cross)
-        for part in range(convex_parts(cx, cy, tx, ty, tn)):
-            if part == 1:
-                for e in range(4):  # a reflex cell: every side may matter
-                    cross[e] = True
-            for c in range(4):
-                sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
-            if polygon_area(sx, sy, 4) < 0.0:
-                sx[1], sx[3], sy[1], sy[3] = sx[3], sx[1], sy[3], sy[1]
-            n, cut = clip(sx, sy, 4, tx[part], ty[part], tn[part], dx, dy)
-            inside = inside or not cut
-            if n < 3 or polygon_area(sx, sy, n) <= 0.0:
-                continue
-            if not held:
-                held = True
-                for c in range(8):
-                    mom[slots, c] = 0.0
-            for q in range(quad_points(geo, origin, k, m, sx, sy, n, qa, qb, qw)):
-                _moments(geo, m, qa[q], qb[q], qw[q], mom, slots)
-                total += qw[q]
+        weight, inside = _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slots)
+        held = weight > 0.0
+        total += weight
         if inside and held:  # the domain lies in this cell: no other cell holds any of it
             seen[head - 1], slots = -1 - m, slots + 1
             break
         if held or head == 1:  # the cells beside a piece (or the particle's cell) may hold more
             for e in range(4):
                 nb = neighbour[m, e]
-                if not cross[e]:  # the domain lies on this side of it
-                    continue
-                if nb >= 0 and n_seen < MAX_VISITED and not _member(seen, n_seen, nb):
+                if cross[e] and nb >= 0 and n_seen < MAX_VISITED and not _member(seen, n_seen,
+                                                                                   nb):
                     seen[n_seen] = nb
                     n_seen += 1
         if held:
@@ -131,6 +111,40 @@ def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
                           dN, rel)
             used += 1
     return used
+
+
+@numba.njit(cache=True, inline="always")
+def _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slot):
+    """Cut the domain by cell ``m`` and put its pieces' moments in ``slot``.
+
+    Returns the pieces' area (0: none; the slot is then untouched) and whether the domain lies
+    inside the cell. Sets ``work``'s side flags (:func:`mpm.mesh_clip.crossed_sides`).
+    """
+    dx, dy, sx, sy, cx, cy, qa, qb, qw, seen, tx, ty, tn, cross = work
+    reversed_order = cell_polygon(geo, origin, k, m, cx, cy)
+    for c in range(4):
+        sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
+    crossed_sides(sx, sy, cx, cy, reversed_order, cross)
+    weight, inside = 0.0, False
+    for part in range(convex_parts(cx, cy, tx, ty, tn)):
+        if part == 1:
+            for e in range(4):  # a reflex cell: every side may matter
+                cross[e] = True
+        for c in range(4):
+            sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
+        if polygon_area(sx, sy, 4) < 0.0:
+            sx[1], sx[3], sy[1], sy[3] = sx[3], sx[1], sy[3], sy[1]
+        n, cut = clip(sx, sy, 4, tx[part], ty[part], tn[part], dx, dy)
+        inside = inside or not cut
+        if n < 3 or polygon_area(sx, sy, n) <= 0.0:
+            continue
+        if weight == 0.0:
+            for c in range(8):
+                mom[slot, c] = 0.0
+        for q in range(quad_points(geo, origin, k, m, sx, sy, n, qa, qb, qw)):
+            _moments(geo, m, qa[q], qb[q], qw[q], mom, slot)
+            weight += qw[q]
+    return weight, inside
 
 
 @numba.njit(cache=True, inline="always")

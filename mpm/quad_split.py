@@ -27,7 +27,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-from mpm.mesh_clip import polygon_area
+from mpm.mesh_clip import polygon_area, polygon_centroid
 from mpm.particles import Particles
 from mpm.split import DomainSplitter
 
@@ -130,7 +130,7 @@ def _cut(q, axis):
             for k in range(4):
                 x[k], y[k] = halves[s][2 * k], halves[s][2 * k + 1]
             areas[s] = polygon_area(x, y, 4)
-            gx, gy = _centroid(x, y, areas[s])
+            gx, gy = polygon_centroid(x, y, 4, areas[s])
             cen[s, p, 0], cen[s, p, 1] = gx, gy
             dst = keep if s == 0 else other
             for k in range(4):  # back to the corner order of the parent
@@ -144,18 +144,6 @@ def _cut(q, axis):
                 cen[0, p, d], cen[1, p, d] = cen[1, p, d], cen[0, p, d]
         frac[p] = areas[big] / (areas[0] + areas[1])
     return keep, other, cen[0], cen[1], frac
-
-
-@numba.njit(cache=True, inline="always")
-def _centroid(x, y, area):
-    """Centroid of the quadrilateral ``(x, y)`` of signed area ``area``."""
-    gx, gy = 0.0, 0.0
-    for i in range(4):
-        j = i + 1 if i < 3 else 0
-        cr = x[i] * y[j] - x[j] * y[i]
-        gx += (x[i] + x[j]) * cr
-        gy += (y[i] + y[j]) * cr
-    return gx / (6.0 * area), gy / (6.0 * area)
 
 
 class QuadSplitter(DomainSplitter):
