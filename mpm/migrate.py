@@ -88,5 +88,6 @@ def migrate(grid: ParticleGrid, particles: Particles,
         return particles, 0
     stay = np.ones(len(particles), dtype=bool)
     stay[leaving] = False
-    merged = particles.select_and_append(stay, Particles.unpack(recv))
+    came = Particles.unpack(recv, particles.has_affine, particles.has_quad)
+    merged = particles.select_and_append(stay, came)
     return merged, int(leaving.size)

@@ -22,13 +22,15 @@ import numpy as np
 from mpm.grid import ParticleGrid
 from mpm.kernels import interpolate
 
-__all__ = ["FLOAT_FIELDS", "QUAD_FIELDS", "Particles", "seed_particles"]
+__all__ = ["AFFINE_FIELDS", "FLOAT_FIELDS", "QUAD_FIELDS", "Particles", "seed_particles"]
 
 #: Corner offsets of a particle's quadrilateral domain on a gmsh mesh.
 QUAD_FIELDS = ("q0x", "q0y", "q1x", "q1y", "q2x", "q2y", "q3x", "q3y")
-#: Per-particle float arrays (the ``id`` is int64).
+#: APIC's affine velocity ``C_p``.
+AFFINE_FIELDS = ("cxx", "cxy", "cyx", "cyy")
+#: Per-particle float arrays (the ``id`` is int64), as :meth:`Particles.pack` orders them.
 FLOAT_FIELDS = ("xi", "eta", "lx", "ly", "volume", "h", "u", "v", "sxx", "syy", "sxy",
-                "cxx", "cxy", "cyx", "cyy", *QUAD_FIELDS)
+                *AFFINE_FIELDS, *QUAD_FIELDS)
 
 
 @dataclass
@@ -46,10 +48,10 @@ class Particles:
         cell: Structured cell index ``j nx + i``.
         id: Global particle id.
         cxx, cxy, cyx, cyy: Affine velocity ``C_p`` of APIC [1/s] (``C_ab = ∂v_a/∂x_b`` of
-            the grid velocity at the particle; zero with the FLIP transfer). Default zeros.
+            the grid velocity at the particle), or None: zero (the FLIP transfer).
         q0x, q0y, .. q3x, q3y: On a gmsh mesh, the corners of the particle's domain, a convex
             quadrilateral, as offsets from the particle [m] (counter-clockwise; all zero: a
-            point particle; :mod:`mpm.mesh_clip`). Unused on the grid. Default zeros.
+            point particle; :mod:`mpm.mesh_clip`), or None: point particles (the grid).
     """
 
     xi: np.ndarray
@@ -78,10 +80,32 @@ class Particles:
     q3x: np.ndarray | None = None
     q3y: np.ndarray | None = None
 
-    def __post_init__(self) -> None:
-        for name in ("cxx", "cxy", "cyx", "cyy", *QUAD_FIELDS):
-            if getattr(self, name) is None:
-                setattr(self, name, np.zeros(self.xi.size))
+    def with_fields(self, affine: bool, quad: bool) -> Particles:
+        """Return these particles carrying the optional groups asked for (shares the arrays).
+
+        A group not carried is None (no memory, nothing copied by :meth:`copy`,
+        :meth:`select`, ...); a group added starts at zero. The solver carries ``C_p`` only
+        with APIC and the corners only on a gmsh mesh: on the grid without APIC, 12 of the 25
+        columns were zeros copied on every step (snapshot, splitting, migration).
+        """
+        data = {f.name: getattr(self, f.name) for f in fields(self)}
+        for names, on in ((AFFINE_FIELDS, affine), (QUAD_FIELDS, quad)):
+            for name in names:
+                if not on:
+                    data[name] = None
+                elif data[name] is None:
+                    data[name] = np.zeros(self.xi.size)
+        return Particles(**data)
+
+    @property
+    def has_affine(self) -> bool:
+        """Whether the particles carry APIC's ``C_p`` (else it is zero)."""
+        return self.cxx is not None
+
+    @property
+    def has_quad(self) -> bool:
+        """Whether the particles carry quadrilateral domains (else they are points)."""
+        return self.q0x is not None
 
     def __len__(self) -> int:
         return int(self.xi.size)
@@ -96,7 +120,9 @@ class Particles:
         return self.volume / self.h
 
     def quad(self) -> np.ndarray:
-        """(n, 8) the domain's corner offsets ``q0x, q0y, .. q3x, q3y``."""
+        """(n, 8) the domain's corner offsets ``q0x, q0y, .. q3x, q3y`` (zeros: points)."""
+        if not self.has_quad:
+            return np.zeros((len(self), len(QUAD_FIELDS)))
         return np.stack([getattr(self, name) for name in QUAD_FIELDS], axis=1)
 
     def set_quad(self, quad: np.ndarray) -> None:
@@ -105,7 +131,9 @@ class Particles:
             setattr(self, name, np.ascontiguousarray(quad[:, k]))
 
     def affine(self) -> np.ndarray:
-        """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC)."""
+        """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC; zeros without it)."""
+        if not self.has_affine:
+            return np.zeros((len(AFFINE_FIELDS), len(self)))
         return np.stack([self.cxx, self.cxy, self.cyx, self.cyy])
 
     def transfer_speeds(self, dx: float, dy: float, apic: bool
@@ -115,14 +143,14 @@ class Particles:
         With APIC ``|v_p| + 2 (Δx |C_x.| + Δy |C_.y|)``: a particle's nodes lie within two
         cells of its domain's centre. They set the exact sums' extractors.
         """
-        if not apic:
+        if not apic or not self.has_affine:
             return self.u, self.v
         return (np.abs(self.u) + 2.0 * (dx * np.abs(self.cxx) + dy * np.abs(self.cxy)),
                 np.abs(self.v) + 2.0 * (dx * np.abs(self.cyx) + dy * np.abs(self.cyy)))
 
     def copy(self) -> Particles:
         """Deep copy."""
-        return Particles(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        return Particles(**{f.name: _copy(getattr(self, f.name)) for f in fields(self)})
 
     def copy_into(self, store: dict[str, np.ndarray] | None) -> tuple[Particles, dict]:
         """Copy into the arrays of ``store`` (grown when too small); return the copy and store.
@@ -136,6 +164,9 @@ class Particles:
         out = {}
         for f in fields(self):
             mine = getattr(self, f.name)
+            if mine is None:
+                out[f.name] = None
+                continue
             buf = store.get(f.name)
             if buf is None or buf.size < n:
                 buf = store[f.name] = np.empty(max(n, int(1.25 * n)), dtype=mine.dtype)
@@ -145,23 +176,28 @@ class Particles:
 
     def select(self, mask: np.ndarray) -> Particles:
         """Return the particles where ``mask`` is true (or at the given indices)."""
-        return Particles(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
+        return Particles(**{f.name: _take(getattr(self, f.name), mask) for f in fields(self)})
 
     def pack(self) -> np.ndarray:
-        """(n, 25) float64 rows for MPI exchange (cell and id stored exactly as float64 views)."""
+        """(n, 25) float64 rows for MPI exchange (cell and id stored exactly as float64 views).
+
+        A group not carried is written as zeros (:meth:`with_fields`).
+        """
         out = np.empty((len(self), len(FLOAT_FIELDS) + 2))
         for k, name in enumerate(FLOAT_FIELDS):
-            out[:, k] = getattr(self, name)
+            mine = getattr(self, name)
+            out[:, k] = 0.0 if mine is None else mine
         out[:, -2] = self.cell.view(np.float64)
         out[:, -1] = self.id.view(np.float64)
         return out
 
     @classmethod
-    def unpack(cls, rows: np.ndarray) -> Particles:
+    def unpack(cls, rows: np.ndarray, affine: bool = True, quad: bool = True) -> Particles:
         """Inverse of :meth:`pack`; also reads the 13- and 17-column rows of older checkpoints.
 
         Rows from before APIC get ``C_p = 0``; rows from before the quadrilateral domains get
-        point domains on a gmsh mesh (on the grid the corners are unused).
+        point domains on a gmsh mesh (on the grid the corners are unused). ``affine``,
+        ``quad``: the optional groups to carry (:meth:`with_fields`).
         """
         rows = np.ascontiguousarray(rows)
         for old, missing in ((13, 4), (17, len(QUAD_FIELDS))):
@@ -169,7 +205,9 @@ class Particles:
                 rows = np.concatenate([rows[:, :-2], np.zeros((rows.shape[0], missing)),
                                        rows[:, -2:]], axis=1)
         rows = rows.reshape(-1, len(FLOAT_FIELDS) + 2)
-        data = {name: rows[:, k].copy() for k, name in enumerate(FLOAT_FIELDS)}
+        skip = (() if affine else AFFINE_FIELDS) + (() if quad else QUAD_FIELDS)
+        data = {name: None if name in skip else rows[:, k].copy()
+                for k, name in enumerate(FLOAT_FIELDS)}
         cell = np.ascontiguousarray(rows[:, -2]).view(np.int64).copy()
         return cls(**data, cell=cell, id=np.ascontiguousarray(rows[:, -1]).view(np.int64).copy())
 
@@ -179,6 +217,11 @@ class Particles:
         out = {}
         for f in fields(self):
             mine, theirs = getattr(self, f.name), getattr(other, f.name)
+            if mine is None or theirs is None:
+                if (mine is None) != (theirs is None):
+                    raise ValueError(f"particle sets differ in carrying {f.name}")
+                out[f.name] = None
+                continue
             joined = np.empty(n + theirs.size, dtype=mine.dtype)
             np.compress(keep, mine, out=joined[:n])
             joined[n:] = theirs
@@ -188,8 +231,28 @@ class Particles:
     @classmethod
     def concatenate(cls, parts: list[Particles]) -> Particles:
         """Join several particle sets."""
-        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+        return cls(**{f.name: _join([getattr(p, f.name) for p in parts], f.name)
                       for f in fields(cls)})
+
+
+def _copy(a: np.ndarray | None) -> np.ndarray | None:
+    """Copy of an optional array."""
+    return None if a is None else a.copy()
+
+
+def _take(a: np.ndarray | None, mask: np.ndarray) -> np.ndarray | None:
+    """``a[mask]`` of an optional array."""
+    return None if a is None else a[mask]
+
+
+def _join(arrays: list[np.ndarray | None], name: str) -> np.ndarray | None:
+    """Concatenation of optional arrays (all None or none None)."""
+    missing = sum(a is None for a in arrays)
+    if missing == len(arrays):
+        return None
+    if missing:
+        raise ValueError(f"particle sets differ in carrying {name}")
+    return np.concatenate(arrays)
 
 
 def seed_particles(

@@ -209,7 +209,7 @@ class QuadSplitter(DomainSplitter):
         full = p.quad()
         full[idx] = quad
         p.set_quad(full)
-        # APIC: each half moves with the affine velocity at its centre (zero C: unchanged)
-        p.u[idx] += p.cxx[idx] * dx + p.cxy[idx] * dy
-        p.v[idx] += p.cyx[idx] * dx + p.cyy[idx] * dy
+        if p.has_affine:  # APIC: each half moves with the affine velocity at its centre
+            p.u[idx] += p.cxx[idx] * dx + p.cxy[idx] * dy
+            p.v[idx] += p.cyx[idx] * dx + p.cyy[idx] * dy
 

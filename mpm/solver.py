@@ -103,7 +103,9 @@ class MPMSolver:
                  per_direction: int = 2, thin_depth: float = 0.0,
                  slope: SlopeGeometry | None = None, apic: bool = False,
                  depth_cap: float | None = DEPTH_CAP) -> None:
-        self.disc, self.grid, self.particles = disc, grid, particles
+        self.disc, self.grid = disc, grid
+        # C_p only with APIC, the corners only on a gmsh mesh (Particles.with_fields)
+        self.particles = particles.with_fields(bool(apic), not grid.structured)
         self.comm, self.mesh, self.V = disc.comm, disc.mesh, disc.V
         self.rho, self.g = float(density), float(gravity)
         self.friction, self.rheology = friction, rheology
@@ -256,7 +258,8 @@ class MPMSolver:
         """Continue from :meth:`save_state` (collective; any rank count)."""
         width = len(FLOAT_FIELDS) + 2
         rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, width))
-        p = Particles.unpack(np.asarray(rows, dtype=np.float64))
+        p = Particles.unpack(np.asarray(rows, dtype=np.float64), self.apic,
+                             self.particles.has_quad)
         self.particles, _ = migrate(self.grid, p, balanced_destinations(self.grid, p))
         self.outflow_volume = float(state["outflow"])
         self.splitter.next_id = int(state["next_id"])

@@ -159,12 +159,12 @@ class DomainSplitter:
         child.id = new_ids.astype(np.int64)
         self._shift(p, idx, key, -half)
         self._shift(child, slice(None), key, half)
-        # APIC: each half moves with the affine velocity at its centre (zero C: unchanged)
-        cu, cv = ("cxx", "cyx") if key == "lx" else ("cxy", "cyy")
-        p.u[idx] -= getattr(p, cu)[idx] * half
-        p.v[idx] -= getattr(p, cv)[idx] * half
-        child.u += getattr(child, cu) * half
-        child.v += getattr(child, cv) * half
+        if p.has_affine:  # APIC: each half moves with the affine velocity at its centre
+            cu, cv = ("cxx", "cyx") if key == "lx" else ("cxy", "cyy")
+            p.u[idx] -= getattr(p, cu)[idx] * half
+            p.v[idx] -= getattr(p, cv)[idx] * half
+            child.u += getattr(child, cu) * half
+            child.v += getattr(child, cv) * half
         return child
 
     def _shift(self, p: Particles, idx, key: str, dist: np.ndarray) -> None:

@@ -168,3 +168,13 @@ def test_slope_normal_peak_depth_map(steep_run) -> None:
     assert ratio.max() <= 1.0 and ratio.min() >= 0.9 * plane_cos
     assert np.median(ratio) == pytest.approx(plane_cos, rel=0.01)
     assert result.summary["peak_depth_normal_max"] <= result.summary["peak_depth_max"]
+
+
+def test_arrival_time_is_the_mean_over_the_reached_nodes():
+    """Q1 samples of t_i 1_i and 1_i: the reached nodes' times, renormalised; NaN if none."""
+    from fem_runout.output.hazard import arrival_over_reached
+
+    # a pixel a quarter of the way from a node reached at 2 s to one never reached
+    got = arrival_over_reached(np.array([0.75 * 2.0, 0.5 * 2.0 + 0.5 * 4.0, 0.0]),
+                               np.array([0.75, 1.0, 0.0]))
+    assert got[0] == 2.0 and got[1] == 3.0 and np.isnan(got[2])

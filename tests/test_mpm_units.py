@@ -302,7 +302,7 @@ def test_apic_round_trip_keeps_a_linear_velocity_field_exactly(grid):
 
 def test_apic_split_gives_each_half_the_affine_velocity_at_its_centre(grid):
     one = np.ones(grid.disc.coords.shape[0])
-    p = seed_particles(grid, one, 0 * one, 0 * one, 2)
+    p = seed_particles(grid, one, 0 * one, 0 * one, 2).with_fields(affine=True, quad=False)
     splitter = DomainSplitter(grid, 2, int(p.id.max()) + 1)
     p.u[:], p.v[:] = 1.0, -2.0
     p.cxx[:], p.cxy[:], p.cyx[:], p.cyy[:] = 0.5, -0.25, 0.125, 2.0
@@ -330,3 +330,22 @@ def test_legacy_checkpoint_rows_without_the_affine_velocity_unpack():
     legacy = np.concatenate([rows[:, :11], rows[:, -2:]], axis=1)  # 13 columns (session 12)
     q = Particles.unpack(legacy)
     assert np.array_equal(q.pack(), rows) and not q.cxx.any()
+
+
+def test_optional_particle_groups_are_carried_only_when_asked():
+    rng = np.random.default_rng(5)
+    p = Particles(*rng.random((11, 6)), cell=np.arange(6), id=np.arange(6) * 3)
+    assert not p.has_affine and not p.has_quad
+    assert not p.affine().any() and p.affine().shape == (4, 6) and p.quad().shape == (6, 8)
+    rows = p.pack()
+    assert rows.shape == (6, 25) and not rows[:, 11:23].any()
+    q = Particles.unpack(rows, affine=False, quad=False)
+    assert not q.has_affine and not q.has_quad and np.array_equal(q.pack(), rows)
+    both = Particles.concatenate([q, q.select(np.array([1, 4]))])
+    assert len(both) == 8 and not both.has_quad and np.array_equal(both.id[6:], [3, 12])
+    snap, _ = both.copy_into(None)
+    assert np.array_equal(snap.pack(), both.pack()) and snap.cxx is None
+    full = q.with_fields(affine=True, quad=True)
+    assert full.has_affine and full.has_quad and not full.q3y.any()
+    with pytest.raises(ValueError, match="cxx"):
+        q.select_and_append(np.ones(6, dtype=bool), full)

@@ -109,6 +109,14 @@ def test_hazard_maps_on_a_mesh(tmp_path):
         deposit = src.read(1)
     assert peak.shape == (40, 40) and res == (1.25, 1.25)  # 50 m at the cell size
     assert (peak != -9999.0).all()
+    with rasterio.open(tmp_path / "mesh" / "arrival_time.tif") as src:
+        arrival = src.read(1)
+    wet = peak > c.output.front_threshold
+    margin = wet & (peak < 0.05)  # pixels in cells whose outer nodes stayed dry
+    assert margin.sum() > 20
+    assert (arrival[wet] != -9999.0).all()  # every wet pixel has its arrival time
+    assert arrival[wet].min() == 0.0 and arrival[wet].max() <= 1.0 + 1e-12
+    assert arrival[margin].min() > 0.5  # the front reaches the margin late in the run
     volume = deposit.sum() * res[0] * res[1]  # midpoint rule on the Q1 field
     assert abs(volume - mesh.summary["deposit_volume"]) <= 0.02 * mesh.summary["deposit_volume"]
     assert abs(peak.max() - mesh.summary["peak_depth_max"]) <= 0.05 * peak.max()

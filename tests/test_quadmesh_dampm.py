@@ -159,3 +159,44 @@ def test_hemisphere_on_a_gmsh_disc_matches_the_grid():
     print("DAMPM hemisphere mean radius", mean, "spread", spread)
     assert abs(mean["gmsh"] / mean["grid"] - 1.0) <= 0.03
     assert spread["gmsh"] <= 0.03
+
+
+SLOPE = {  # a release on a curved, rough 31° slope running out onto a 3° floor (Voellmy)
+    "name": "slope", "method": "mpm", "gravity": 9.81,
+    "domain": {"extent": [0, 500, 0, 200], "cells": [50, 20], "boundary": "open"},
+    "terrain": {"elevation": "200 - 0.6*x + 16.5*log(1 + exp((x - 300)/30))"
+                             " + 0.002*(y - 100)**2 + 1.5*sin(x/6)*sin(y/8)"},
+    "initial": {"depth": "3*maximum(1 - ((x-60)**2 + (y-100)**2)/900, 0)",
+                "velocity": ["0", "0"]},
+    "material": {"density": 200, "friction": {"law": "voellmy", "mu": 0.155, "xi": 4000}},
+    "model": {"form": "slope"},
+    "time": {"end": 20, "cfl": 0.9},
+    "output": {"every": 20},
+    "numerics": {"particles_per_direction": 4},
+}
+
+
+def _moments(r):
+    """Depth-weighted centroid along the slope and the spread about it [m]."""
+    w = r.area * r.h
+    cx = float((w * r.x).sum() / w.sum())
+    return cx, float(np.sqrt((w * (r.x - cx) ** 2).sum() / w.sum()))
+
+
+def test_slope_on_a_gmsh_mesh_is_within_the_grids_own_refinement_change():
+    """20 s of a Voellmy flow down a curved, rough slope (slope-consistent form): on a gmsh
+    mesh of a five-sided outline (irregular 10 m cells) the centroid and spread differ from
+    the 10 m grid's by less than halving the grid's cells changes them (the grid's own
+    discretisation error); the mesh path does not move the flow. (Measured: 1.5 and 0.6 m
+    against 5.1 and 5.2 m; at 5 m cells 0.02 and 0.07 m.)"""
+    outline = [[0, 0], [500, 0], [500, 200], [250, 215], [0, 200]]
+    gmsh = ["domain.extent=null", "domain.cells=null", f"domain.outline={outline}",
+            "domain.cell_size=10", "domain.min_size=5"]
+    runs = {kind: _moments(run(load_case(SLOPE, over), write=False, comm=COMM))
+            for kind, over in (("grid", []), ("fine", ["domain.cells=[100,40]"]),
+                               ("gmsh", gmsh))}
+    print("slope centroid and spread", runs)
+    for k in range(2):
+        assert abs(runs["grid"][k] - runs["fine"][k]) > 2.0  # the flow resolved: it moves
+        assert abs(runs["gmsh"][k] - runs["grid"][k]) < 0.5 * abs(runs["fine"][k] - runs["grid"][k])
+    assert runs["grid"][0] > 380.0  # on the floor, past the slope's foot at 300 m

@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from fem_runout.config import Case
     from fem_runout.solver_api import Solver
 
-__all__ = ["MAP_NAMES", "NODATA", "GridTarget", "HazardMaps", "map_summary", "raster_areas",
+__all__ = ["MAP_NAMES", "NODATA", "GridTarget", "HazardMaps", "arrival_over_reached",
+           "map_summary", "raster_areas",
            "write_rasters"]
 
 NODATA = -9999.0
@@ -158,6 +159,20 @@ def raster_areas(peak: np.ndarray, deposit: np.ndarray, target: GridTarget,
     pixel = abs(t.a * t.e)
     return {"affected_area": float(np.count_nonzero(peak > threshold)) * pixel,
             "deposit_area": float(np.count_nonzero(deposit > threshold)) * pixel}
+
+
+def arrival_over_reached(weighted: np.ndarray, reached: np.ndarray) -> np.ndarray:
+    """Arrival time at sample points from the Q1 samples of ``t_i 1_i`` and ``1_i``.
+
+    ``1_i`` marks the nodes the flow reached (``t_i`` finite). The ratio is the Q1 mean of
+    the reached nodes' times with the weights renormalised over them: defined wherever a
+    node of the cell was reached, so wherever the sampled peak depth exceeds the threshold
+    (a plain Q1 sample of ``t_i`` is NaN as soon as one of the cell's nodes stayed dry, which
+    left 1 076 of 11 509 wet pixels of DAMPM's avaKot corridor run without an arrival time).
+    NaN where no node was reached.
+    """
+    ok = reached > 0.0
+    return np.where(ok, weighted / np.where(ok, reached, 1.0), np.nan)
 
 
 def bed_cosine(z: np.ndarray, extent: tuple[float, float, float, float]) -> np.ndarray:
@@ -307,10 +322,16 @@ class HazardMaps:
             return summary
         target = mesh_target(self.case, disc)
         xs, ys = target.centres()
-        names = ("peak_depth", "peak_speed", "peak_pressure", "arrival_time", "h", "h0", "z")
-        local = {"cos": cos, **ghosted(disc, {k: track[k] for k in names})}
+        names = ("peak_depth", "peak_speed", "peak_pressure", "h", "h0", "z")
+        arrival = track["arrival_time"]
+        reached = np.isfinite(arrival)
+        local = {"cos": cos, **ghosted(disc, {**{k: track[k] for k in names},
+                                              "arrival_time": np.where(reached, arrival, 0.0),
+                                              "reached": reached.astype(float)})}
         grids = sample_q1(disc, local, xs, ys[::-1])
         if grids is not None:
+            grids["arrival_time"] = arrival_over_reached(grids.pop("arrival_time"),
+                                                         grids.pop("reached"))
             g = {k: v[::-1] for k, v in grids.items()}  # rows from the top, as the raster
             g["peak_depth_normal"] = g["peak_depth"] * g["cos"]
             g["deposit_depth"] = g["h"]
