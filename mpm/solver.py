@@ -126,7 +126,7 @@ class MPMSolver:
         self.buffers = NodeBuffers(self.nodal.n_nodes)
         self.lumped_mass = self.nodal.to_local(self.projector.lumped_mass)
         n_ids = self.comm.allreduce(int(particles.id.max(initial=-1)), op=MPI.MAX) + 1
-        splitter = DomainSplitter if disc.structured else QuadSplitter
+        splitter = DomainSplitter if grid.structured else QuadSplitter
         self.splitter = splitter(grid, per_direction, n_ids, thin_depth)
         self.outflow_volume = 0.0
         self.sent = 0

@@ -75,6 +75,12 @@ def test_coarser_mesh_and_no_dem(tmp_path: Path) -> None:
     nodes = result.peak_depth.reshape(8, 10)[::-1]
     np.testing.assert_allclose(peak[1::2, 0:19:2], nodes, rtol=1e-12)  # on the nodes
     assert (peak[:, 19] == NODATA).all()  # the last column lies outside the domain
+    with rasterio.open(result.out_dir / "arrival_time.tif") as out:
+        arrival = out.read(1)
+    wet = peak > case.output.front_threshold
+    assert wet.sum() > wet[1::2, 0:19:2].sum()  # wet pixels between the nodes too
+    assert (arrival[wet] != NODATA).all() and arrival[wet].min() == 0.0
+    assert arrival[wet].max() <= 1.0 + 1e-12
     flat = {"name": "flat", "domain": {"extent": [0, 4, 0, 2], "cells": [4, 2]},
             "initial": {"depth": "where(x < 2, 1, 0)"}, "time": {"end": 0.2},
             "output": {"dir": str(tmp_path / "flat"), "pictures": False}}

@@ -4,7 +4,8 @@ A callback on the Q1 fields ``h, hu, hv`` (every method has them). At finish the
 are gathered to rank 0 and written as GeoTIFF (and ESRI ASCII with ``output.ascii``). With
 ``terrain.dem`` they lie on the DEM grid (same shape, transform and CRS; cells outside the
 domain are nodata); nodes on DEM cell centres give their values unchanged, other cells are
-interpolated bilinearly (nearest for the arrival time). Without a DEM the rasters are the node
+interpolated bilinearly (the arrival time over the nodes reached, :func:`arrival_over_reached`).
+Without a DEM the rasters are the node
 grid itself (one pixel per node, no CRS).
 
 The summary's affected and deposit areas are counted on the DEM rasters' pixels when the case
@@ -370,9 +371,14 @@ class HazardMaps:
         target = target_for(self.case)
         g["deposit_depth"] = g["h"]
         names = MAP_NAMES if self.out_dir is not None else ("peak_depth", "deposit_depth")
-        maps = {name: to_target(g[name], extent, target,
-                                "nearest" if name == "arrival_time" else "bilinear")
-                for name in names}
+        maps = {name: to_target(g[name], extent, target) for name in names
+                if name != "arrival_time"}
+        if "arrival_time" in names:
+            reached = np.isfinite(g["arrival_time"])
+            weighted = to_target(np.where(reached, g["arrival_time"], 0.0), extent, target)
+            share = to_target(reached.astype(float), extent, target)  # NODATA outside: < 0
+            arrival = arrival_over_reached(weighted, np.maximum(share, 0.0))
+            maps["arrival_time"] = np.where(np.isfinite(arrival), arrival, NODATA)
         if with_dem:
             summary.update(raster_areas(maps["peak_depth"], maps["deposit_depth"], target,
                                         self.threshold))
