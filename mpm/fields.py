@@ -32,17 +32,11 @@ class FieldWriter:
         self._local_of = np.full(nodal.n_nodes, -1, dtype=np.int64)  # global -> local dof
         self._local_of[nodal.node_index] = np.arange(nodal.node_index.size)
         self._written: dict[str, np.ndarray] = {}
-        self._windows: dict[tuple[int, int, int], np.ndarray] = {}
 
     def owned_dofs(self, nodes: np.ndarray) -> np.ndarray:
-        """Sorted owned dofs of a projection window's global nodes (cached per window)."""
-        key = (nodes.size, int(nodes[0]), int(nodes[-1])) if nodes.size else (0, 0, 0)
-        if key not in self._windows:
-            local = self._local_of[nodes]
-            if len(self._windows) > 64:
-                self._windows.clear()
-            self._windows[key] = np.sort(local[(local >= 0) & (local < self._n_owned)])
-        return self._windows[key]
+        """Sorted owned dofs of the projection's global nodes (its support, any shape)."""
+        local = self._local_of[nodes]
+        return np.sort(local[(local >= 0) & (local < self._n_owned)])
 
     def write(self, name: str, nodes: np.ndarray, values: np.ndarray) -> None:
         """Set field ``name`` to ``values`` at the global ``nodes``, zero elsewhere.

@@ -143,7 +143,8 @@ def _blend(sub, mass, ids, lc, emass, anti, rtol, max_it):
     """Project a window's sums: ``(h, FCT passes, CG iterations)``, ``h[:, 0] >= 0``."""
     high, its = _pcg(ids, lc, emass, sub, rtol, max_it)
     offsets, adj = node_cells(lc, sub.shape[0])
-    res, passes = blend(sub, mass, high, lc, anti, ids, offsets, adj)
+    res, passes = blend(sub, mass, high, lc, anti, ids, offsets, adj, np.arange(lc.shape[0]),
+                        np.arange(sub.shape[0]))
     return res, passes, its
 
 

@@ -22,13 +22,17 @@ On the structured grid the consistent mass matrix is a tensor product, ``M_C = M
 with the 1D matrices ``Δ/6 tridiag(1, 4, 1)`` (2 at the ends), so ``M_C^{-1} b`` is two sweeps
 of tridiagonal solves (rows, then columns): exact, O(N), no iteration. The projector works on
 the global structured node array (index ``j (nx + 1) + i``), which the solver sums over the
-ranks once per step; every rank then projects the whole (cheap) grid, with no communication.
+ranks once per step; every rank then projects, with no communication, on the flow's support
+(:meth:`GridProjector.project_nodes`, :mod:`mpm.projection_support`): the nodes within
+:data:`WINDOW_MARGIN` of a node with sums, not the whole grid or the flow's bounding box.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
+
+from mpm.projection_support import consistent, consistent_on_support, row_spans, support_cells
 
 __all__ = ["GridProjector", "blend", "fct_blend", "node_cells", "tridiagonal_mass_solve"]
 
@@ -67,13 +71,18 @@ def tridiagonal_mass_solve(rhs, first_end=True, last_end=True):
 
 
 @numba.njit(cache=True, inline="always")
-def _add_antidiffusion(acc, cells, matrix, high, c, sign):
-    """``acc += sign f_K`` for cell ``c``, ``f_K = (M_L^K - M_C^K) high`` (fixed order)."""
+def _add_antidiffusion(acc, cells, mats, e, high, c, sign):
+    """``acc += sign f_K`` for cell ``c``, ``f_K = (M_L^K - M_C^K) high`` (fixed order).
+
+    ``mats[e]`` is the cell's matrix (indexed in place: a view per cell cost more than the
+    arithmetic).
+    """
     for m in range(high.shape[1]):
         h0, h1 = high[cells[c, 0], m], high[cells[c, 1], m]
         h2, h3 = high[cells[c, 2], m], high[cells[c, 3], m]
         for q in range(4):
-            f = matrix[q, 0] * h0 + matrix[q, 1] * h1 + matrix[q, 2] * h2 + matrix[q, 3] * h3
+            f = (mats[e, q, 0] * h0 + mats[e, q, 1] * h1 + mats[e, q, 2] * h2
+                 + mats[e, q, 3] * h3)
             if sign > 0.0:
                 acc[cells[c, q], m] += f
             else:
@@ -100,7 +109,7 @@ def node_cells(cells, n_nodes):
 
 
 @numba.njit(cache=True)
-def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj):
+def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj, start, nodes):
     """``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``α_K = 0`` on cells touching a negative node.
 
     The element antidiffusion is ``f_K = (M_L^K - M_C^K) high``. A pass finds
@@ -118,16 +127,20 @@ def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj):
         tol: Depth below which a node is negative.
         offsets: Node → cell adjacency of ``cells`` (:func:`node_cells`).
         adj: Its cells.
+        start: The cells whose ``f_K`` may be nonzero, increasing (all cells but those whose
+            nodes all have ``high = 0``).
+        nodes: The nodes of those cells, increasing (``h = 0`` elsewhere).
 
     Returns:
         ``(h, passes)``: (n, k) blended fields and the number of passes.
     """
     n_cells, n, k = cells.shape[0], low.shape[0], low.shape[1]
     acc = np.zeros(low.shape)
-    for c in range(n_cells):
-        _add_antidiffusion(acc, cells, mats[ids[c]], high, c, 1.0)
+    for c in start:
+        _add_antidiffusion(acc, cells, mats, ids[c], high, c, 1.0)
     alpha = np.ones(n_cells, dtype=np.bool_)
-    cand, n_cand = np.arange(n), n
+    cand, n_cand = nodes.copy(), nodes.size
+    cand = np.concatenate((cand, np.empty(n - n_cand, dtype=np.int64)))
     seen = np.zeros(n, dtype=np.bool_)
     bad = np.empty(n, dtype=np.int64)
     passes = 0
@@ -146,7 +159,7 @@ def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj):
                 if not alpha[c]:
                     continue
                 alpha[c] = False
-                _add_antidiffusion(acc, cells, mats[ids[c]], high, c, -1.0)
+                _add_antidiffusion(acc, cells, mats, ids[c], high, c, -1.0)
                 for q in range(4):
                     node = cells[c, q]
                     if not seen[node]:
@@ -158,87 +171,51 @@ def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj):
         for t in range(n_next):
             seen[cand[t]] = False
         n_cand = n_next
-    out = np.empty(low.shape)
-    for a in range(n):
+    out = np.zeros(low.shape)
+    for a in nodes:
         for m in range(k):
             out[a, m] = low[a, m] + acc[a, m] / mass[a]
     return out, passes
 
 
 @numba.njit(cache=True)
-def _line_factors(n, first_end, last_end):
-    """Thomas factors ``(c, 1/denom)`` of :func:`tridiagonal_mass_solve` for lines of ``n``."""
-    c, inv = np.empty(n), np.empty(n)
-    denom = (2.0 if first_end else 4.0) / 6.0
-    c[0], inv[0] = (1.0 / 6.0) / denom, 1.0 / denom
-    for t in range(1, n):
-        d = (2.0 if (t == n - 1 and last_end) else 4.0) / 6.0
-        denom = d - (1.0 / 6.0) * c[t - 1]
-        c[t], inv[t] = (1.0 / 6.0) / denom, 1.0 / denom
-    return c, inv
-
-
-@numba.njit(cache=True)
-def _solve_line(x, start, step, n, c, inv):
-    """:func:`tridiagonal_mass_solve` in place on ``x[start + t step]``, ``t < n``.
-
-    The factors of every line of a direction are the same (:func:`_line_factors`): no
-    division per node (the result differs from the reference solve by round-off only).
-    """
-    x[start] = x[start] * inv[0]
-    for t in range(1, n):
-        x[start + t * step] = (x[start + t * step] - (1.0 / 6.0) * x[start + (t - 1) * step]
-                               ) * inv[t]
-    for t in range(n - 2, -1, -1):
-        x[start + t * step] -= c[t] * x[start + (t + 1) * step]
-
-
-@numba.njit(cache=True)
-def _consistent(b, wy, wx, ends, area):
-    """``M_C^{-1} b`` on a (wy × wx) window, b row-major (wy wx, k): rows, then columns."""
-    k, size = b.shape[1], wy * wx
-    x = np.empty(k * size)
-    for a in range(size):
-        for m in range(k):
-            x[m * size + a] = b[a, m]
-    cx, dx = _line_factors(wx, ends[0], ends[1])
-    cy, dy = _line_factors(wy, ends[2], ends[3])
-    for m in range(k):
-        for r in range(wy):
-            _solve_line(x, m * size + r * wx, 1, wx, cx, dx)
-        for i in range(wx):
-            _solve_line(x, m * size + i, wx, wy, cy, dy)
-    out = np.empty((size, k))
-    scale = 1.0 / area
-    for a in range(size):
-        for m in range(k):
-            out[a, m] = x[m * size + a] * scale
-    return out
-
-
-@numba.njit(cache=True)
 def _blend(sub, mass, cells, matrix, wy, wx, ends, area, offsets, adj):
     """Project a window's sums (module docstring): ``(h, passes)``, ``h[:, 0] >= 0``."""
-    high = _consistent(sub, wy, wx, ends, area)
+    high = consistent(sub, wy, wx, ends, area)
     ids = np.zeros(cells.shape[0], dtype=np.int64)
-    return blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj)
+    return blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj,
+                 np.arange(cells.shape[0]), np.arange(sub.shape[0]))
 
 
 @numba.njit(cache=True)
-def blend(sub, mass, high, cells, mats, ids, offsets, adj):
+def _blend_on_support(sub, mass, cells, matrix, wy, wx, ends, area, offsets, adj, rows, cols):
+    """:func:`_blend` on the flow's support: ``(h, touched nodes, passes)``."""
+    lo, hi = row_spans(rows, cols, wy)
+    high, clo, chi = consistent_on_support(sub, wy, wx, ends, area, lo, hi, WINDOW_MARGIN)
+    start, nodes = support_cells(clo, chi, wy, wx)
+    ids = np.zeros(cells.shape[0], dtype=np.int64)
+    res, passes = blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj,
+                        start, nodes)
+    return res, nodes, passes
+
+
+@numba.njit(cache=True)
+def blend(sub, mass, high, cells, mats, ids, offsets, adj, start, nodes):
     """Blend the lumped projection ``sub / mass`` with ``high`` (:func:`fct_blend`), ``h >= 0``.
 
     Returns ``(h, passes)`` (the arguments as :func:`fct_blend`'s; negatives of round-off
-    size, below ``1e-13`` of the largest lumped depth, count as zero).
+    size, below ``1e-13`` of the largest lumped depth, count as zero; ``sub`` is zero off
+    ``nodes``).
     """
-    low = np.empty(sub.shape)
+    low = np.zeros(sub.shape)
     top = 0.0
-    for a in range(sub.shape[0]):
+    for a in nodes:
         for m in range(sub.shape[1]):
             low[a, m] = sub[a, m] / mass[a]
         top = max(top, abs(low[a, 0]))
-    res, passes = fct_blend(cells, mats, ids, low, high, mass, 1e-13 * top, offsets, adj)
-    for a in range(sub.shape[0]):
+    res, passes = fct_blend(cells, mats, ids, low, high, mass, 1e-13 * top, offsets, adj,
+                            start, nodes)
+    for a in nodes:
         res[a, 0] = max(res[a, 0], 0.0)
     return res, passes
 
@@ -286,7 +263,7 @@ class GridProjector:
         ny1, nx1 = self.shape
         j0, j1, i0, i1 = window if window is not None else (0, ny1, 0, nx1)
         ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
-        return _consistent(np.ascontiguousarray(b, dtype=float), j1 - j0, i1 - i0, ends,
+        return consistent(np.ascontiguousarray(b, dtype=float), j1 - j0, i1 - i0, ends,
                            self.area)
 
     def project(self, b: np.ndarray) -> np.ndarray:
@@ -311,9 +288,13 @@ class GridProjector:
                       ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` of one column given on the nodes where it is not zero (sorted).
 
+        Solved on the flow's support (:mod:`mpm.projection_support`): equal to
+        :meth:`project` to about ``1e-14`` of the largest depth, at a cost that follows the
+        flow's nodes, not its bounding box.
+
         Returns:
-            ``(index, h)``: the window's nodes (global indices) and the field on them (>= 0;
-            zero elsewhere).
+            ``(index, h)``: the support's nodes (global indices, increasing) and the field
+            on them (>= 0; zero elsewhere).
         """
         ny1, nx1 = self.shape
         if nodes.size == 0:
@@ -321,10 +302,15 @@ class GridProjector:
         j, i = nodes // nx1, nodes % nx1
         window = self._bounds(int(j[0]), int(j[-1]), int(i.min()), int(i.max()))
         j0, j1, i0, i1 = window
-        sub = np.zeros(((j1 - j0) * (i1 - i0), 1))
-        sub[(j - j0) * (i1 - i0) + (i - i0), 0] = values
-        index = self._window_arrays(window)[0]
-        return index, self._blend(sub, window)[:, 0]
+        wy, wx = j1 - j0, i1 - i0
+        sub = np.zeros((wy * wx, 1))
+        sub[(j - j0) * wx + (i - i0), 0] = values
+        index, cells, offsets, adj = self._window_arrays(window)
+        ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
+        res, touched, self.iterations = _blend_on_support(
+            sub, self.lumped_mass[index], cells, self.matrix, wy, wx, ends, self.area, offsets,
+            adj, j - j0, i - i0)
+        return index[touched], res[touched, 0]
 
     def _blend(self, sub: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
         """Projection of a window's sums (row-major, (n, k)); sets :attr:`iterations`."""

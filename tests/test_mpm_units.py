@@ -349,3 +349,38 @@ def test_optional_particle_groups_are_carried_only_when_asked():
     assert full.has_affine and full.has_quad and not full.q3y.any()
     with pytest.raises(ValueError, match="cxx"):
         q.select_and_append(np.ones(6, dtype=bool), full)
+
+
+def test_projection_on_the_flow_support_is_the_window_projection_to_round_off():
+    """Issue 16: the solver's projection solves each line on the flow's support only
+    (mpm/projection_support.py). On a diagonal band, two far blobs and a cluster at the
+    grid's corner it equals the window projection to round-off (the two truncations are
+    0.27^24 apart), conserves the volume, stays >= 0 and covers less than the window."""
+    proj = GridProjector((220, 259), (10.0, 10.0))
+    ny1, nx1 = proj.shape
+    rng = np.random.default_rng(11)
+    sums = np.zeros(ny1 * nx1)
+    for t in range(150):  # a band 15 nodes wide running diagonally, like a gully's flow
+        j, i0 = 40 + t, 30 + int(0.8 * t)
+        sums[j * nx1 + i0: j * nx1 + i0 + 15] = 50.0 * rng.random(15)
+    sums[200 * nx1 + 150] = 3.0  # an isolated node
+    sums[nx1 + 200: nx1 + 205] = 1.0  # a few nodes next to the bottom side
+    sums[(ny1 - 1) * nx1: (ny1 - 1) * nx1 + 3] = 2.0  # the top-left corner
+    nodes = np.flatnonzero(sums)
+    ref = proj.project(sums[:, None])[:, 0]
+    index, h = proj.project_nodes(nodes, sums[nodes])
+    assert np.all(np.diff(index) > 0) and h.min() >= 0.0
+    out = np.zeros_like(ref)
+    out[index] = h
+    assert np.abs(out - ref).max() <= 1e-12 * ref.max()
+    assert abs(np.sum(proj.lumped_mass * out) - sums.sum()) <= 1e-13 * sums.sum()
+    window = proj.window(sums)
+    assert index.size < 0.7 * (window[1] - window[0]) * (window[3] - window[2])
+    single = np.zeros_like(sums)  # a lone particle: the FCT blend keeps h >= 0 there too
+    single[100 * nx1 + 100] = 1.0
+    index, h = proj.project_nodes(np.array([100 * nx1 + 100]), np.array([1.0]))
+    whole = proj.project(single[:, None])[:, 0]
+    assert h.min() >= 0.0 and np.abs(h - whole[index]).max() <= 1e-12 * whole.max()
+    # volume: exact but for the clamp of round-off negatives (below 1e-13 of the lumped peak)
+    clamp = 1e-13 * (1.0 / proj.lumped_mass[100 * nx1 + 100]) * proj.lumped_mass[index].sum()
+    assert abs(np.sum(proj.lumped_mass[index] * h) - 1.0) <= clamp
