@@ -130,6 +130,24 @@ class Particles:
         for k, name in enumerate(QUAD_FIELDS):
             setattr(self, name, np.ascontiguousarray(quad[:, k]))
 
+    def quad_columns(self) -> tuple[np.ndarray, ...]:
+        """Return the eight corner-offset arrays themselves (no copy; kernels may change them)."""
+        if not self.has_quad:
+            return tuple(np.zeros(len(self)) for _ in QUAD_FIELDS)
+        for name in QUAD_FIELDS:  # one array type for the kernels' tuple
+            if not getattr(self, name).flags.c_contiguous:
+                setattr(self, name, np.ascontiguousarray(getattr(self, name)))
+        return tuple(getattr(self, name) for name in QUAD_FIELDS)
+
+    def quad_at(self, idx: np.ndarray) -> np.ndarray:
+        """(len(idx), 8) the corner offsets of particles ``idx``."""
+        return np.stack([getattr(self, name)[idx] for name in QUAD_FIELDS], axis=1)
+
+    def set_quad_at(self, idx: np.ndarray, quad: np.ndarray) -> None:
+        """Set the corner offsets of particles ``idx`` from a (len(idx), 8) array (in place)."""
+        for k, name in enumerate(QUAD_FIELDS):
+            getattr(self, name)[idx] = quad[:, k]
+
     def affine(self) -> np.ndarray:
         """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC; zeros without it)."""
         if not self.has_affine:

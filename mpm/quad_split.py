@@ -36,11 +36,11 @@ __all__ = ["QuadSplitter"]
 
 @numba.njit(cache=True, inline="always")
 def _half_vectors(q, p):
-    """``r_s, r_t`` of particle ``p``'s corner offsets ``q`` (n, 8)."""
-    sx = 0.25 * ((q[p, 2] + q[p, 4]) - (q[p, 0] + q[p, 6]))
-    sy = 0.25 * ((q[p, 3] + q[p, 5]) - (q[p, 1] + q[p, 7]))
-    tx = 0.25 * ((q[p, 4] + q[p, 6]) - (q[p, 0] + q[p, 2]))
-    ty = 0.25 * ((q[p, 5] + q[p, 7]) - (q[p, 1] + q[p, 3]))
+    """``r_s, r_t`` of particle ``p``'s corner offsets ``q`` (the eight arrays)."""
+    sx = 0.25 * ((q[2][p] + q[4][p]) - (q[0][p] + q[6][p]))
+    sy = 0.25 * ((q[3][p] + q[5][p]) - (q[1][p] + q[7][p]))
+    tx = 0.25 * ((q[4][p] + q[6][p]) - (q[0][p] + q[2][p]))
+    ty = 0.25 * ((q[5][p] + q[7][p]) - (q[1][p] + q[3][p]))
     return sx, sy, tx, ty
 
 
@@ -48,15 +48,17 @@ def _half_vectors(q, p):
 def _deform(q, grad, dt, h, thin_depth, cell, jac, limit, max_aspect):
     """Map the offsets by ``I + Δt ∇v``, then bound the aspect ratio and thin domains.
 
-    The bounds act in the units of the particle's cell (``jac``: (n_cells, 4) its Jacobian
-    ``(x_ξ, x_η, y_ξ, y_η)`` at the centre), as the grid's do in ``Δx, Δy``.
+    ``q``: the eight corner-offset arrays (:meth:`mpm.particles.Particles.quad_columns`),
+    changed in place. The bounds act in the units of the particle's cell (``jac``:
+    (n_cells, 4) its Jacobian ``(x_ξ, x_η, y_ξ, y_η)`` at the centre), as the grid's do in
+    ``Δx, Δy``.
     """
-    for p in range(q.shape[0]):
+    for p in range(q[0].size):
         a00, a01 = 1.0 + dt * grad[p, 0, 0], dt * grad[p, 0, 1]
         a10, a11 = dt * grad[p, 1, 0], 1.0 + dt * grad[p, 1, 1]
         for c in range(4):
-            x, y = q[p, 2 * c], q[p, 2 * c + 1]
-            q[p, 2 * c], q[p, 2 * c + 1] = a00 * x + a01 * y, a10 * x + a11 * y
+            x, y = q[2 * c][p], q[2 * c + 1][p]
+            q[2 * c][p], q[2 * c + 1][p] = a00 * x + a01 * y, a10 * x + a11 * y
         j00, j01, j10, j11 = jac[cell[p], 0], jac[cell[p], 1], jac[cell[p], 2], jac[cell[p], 3]
         det = j00 * j11 - j01 * j10
         i00, i01, i10, i11 = j11 / det, -j01 / det, -j10 / det, j00 / det
@@ -86,15 +88,15 @@ def _deform(q, grad, dt, h, thin_depth, cell, jac, limit, max_aspect):
         t00, t01 = j00 * b00 + j01 * b10, j00 * b01 + j01 * b11
         t10, t11 = j10 * b00 + j11 * b10, j10 * b01 + j11 * b11
         for c in range(4):
-            x, y = q[p, 2 * c], q[p, 2 * c + 1]
-            q[p, 2 * c], q[p, 2 * c + 1] = t00 * x + t01 * y, t10 * x + t11 * y
+            x, y = q[2 * c][p], q[2 * c + 1][p]
+            q[2 * c][p], q[2 * c + 1][p] = t00 * x + t01 * y, t10 * x + t11 * y
 
 
 @numba.njit(cache=True)
 def _widths(q, cell, jac):
-    """(n, 2) ``|r_s|, |r_t|`` of every domain in its cell's units."""
-    out = np.empty((q.shape[0], 2))
-    for p in range(q.shape[0]):
+    """(n, 2) ``|r_s|, |r_t|`` of every domain in its cell's units (``q``: the eight arrays)."""
+    out = np.empty((q[0].size, 2))
+    for p in range(q[0].size):
         j00, j01, j10, j11 = jac[cell[p], 0], jac[cell[p], 1], jac[cell[p], 2], jac[cell[p], 3]
         det = j00 * j11 - j01 * j10
         sx, sy, tx, ty = _half_vectors(q, p)
@@ -163,14 +165,12 @@ class QuadSplitter(DomainSplitter):
 
     def stretch(self, p: Particles, dt: float, grad: np.ndarray) -> None:
         """Deform the domains with ``I + Δt ∇v_p`` and bound them (in place)."""
-        q = p.quad()
-        _deform(q, grad, dt, p.h, self.thin_depth, p.cell, self._jac, self._limit,
-                self.max_aspect)
-        p.set_quad(q)
+        _deform(p.quad_columns(), grad, dt, p.h, self.thin_depth, p.cell, self._jac,
+                self._limit, self.max_aspect)
 
     def widths(self, p: Particles) -> np.ndarray:
         """(n, 2) half-extents ``|J^{-1} r_s|, |J^{-1} r_t|`` of the domains (cell units)."""
-        return _widths(p.quad(), p.cell, self._jac)
+        return _widths(p.quad_columns(), p.cell, self._jac)
 
     def _any_wide(self, parts: list[Particles]) -> bool:
         """Whether a domain on any rank exceeds the limit (collective)."""
@@ -184,7 +184,7 @@ class QuadSplitter(DomainSplitter):
     def _halve(self, p: Particles, idx: np.ndarray, axis: int, new_ids: np.ndarray
                ) -> Particles:
         """Cut domains ``idx`` of ``p`` in two along ``axis`` in place; return the others."""
-        keep, other, cen_k, cen_o, frac = _cut(np.ascontiguousarray(p.quad()[idx]), axis)
+        keep, other, cen_k, cen_o, frac = _cut(p.quad_at(idx), axis)
         volume = p.volume[idx]
         kept = volume * frac
         p.volume[idx] = kept
@@ -206,9 +206,7 @@ class QuadSplitter(DomainSplitter):
         quad = quad.copy()
         quad[:, 0::2] -= dx[:, None]
         quad[:, 1::2] -= dy[:, None]
-        full = p.quad()
-        full[idx] = quad
-        p.set_quad(full)
+        p.set_quad_at(idx, quad)
         if p.has_affine:  # APIC: each half moves with the affine velocity at its centre
             p.u[idx] += p.cxx[idx] * dx + p.cxy[idx] * dy
             p.v[idx] += p.cyx[idx] * dx + p.cyy[idx] * dy
