@@ -124,3 +124,32 @@ def test_quad_split_conserves_volume_and_tiles_the_parent():
     moved = (math.fsum(areas * x), math.fsum(areas * y))
     assert max(abs(a - b) for a, b in zip(moved, first, strict=True)) <= 1e-11 * first[0]
     assert np.all(splitter.widths(q) <= 1.0 / 3.0)
+
+
+def test_stretch_maps_the_corner_arrays_in_place_by_the_velocity_gradient():
+    """The splitter deforms the particles' own corner arrays (no (n, 8) copy): every offset
+    is mapped by I + dt grad v, so each domain's area changes by det(I + dt grad v) (within
+    the aspect bound), and quad_at / set_quad_at read and write rows in place."""
+    g = _grid(0.3)
+    cell = np.arange(20, 40)
+    quarter = np.full(cell.size, 0.5)
+    xi, eta, area, quad = g.seed_domains(cell, quarter, quarter, 4)
+    p = Particles(xi, eta, 0 * xi, 0 * xi, area.copy(), 1.0 + 0 * xi, 0 * xi, 0 * xi, 0 * xi,
+                  0 * xi, 0 * xi, cell=cell, id=np.arange(cell.size))
+    p.set_quad(quad)
+    column = p.q1x
+    grad = np.tile(np.array([[0.2, 0.1], [-0.05, 0.1]]), (cell.size, 1, 1))
+    dt = 0.5
+    QuadSplitter(g, 2, cell.size).stretch(p, dt, grad)
+    assert p.q1x is column  # changed in place
+    m = np.eye(2) + dt * grad[0]
+    q = p.quad()
+    assert np.allclose(q[:, 0::2], m[0, 0] * quad[:, 0::2] + m[0, 1] * quad[:, 1::2],
+                       rtol=0, atol=1e-14)
+    areas = np.array([polygon_area(q[i, 0::2], q[i, 1::2], 4) for i in range(len(p))])
+    assert np.allclose(areas, np.linalg.det(m) * area, rtol=1e-13, atol=0)
+    rows = np.array([3, 7])
+    new = p.quad_at(rows) + 1.0
+    p.set_quad_at(rows, new)
+    assert np.array_equal(p.quad()[rows], new) and p.q1x is column
+    assert np.array_equal(np.delete(p.quad(), rows, axis=0), np.delete(q, rows, axis=0))
