@@ -74,8 +74,7 @@ def tridiagonal_mass_solve(rhs, first_end=True, last_end=True):
 def _add_antidiffusion(acc, cells, mats, e, high, c, sign):
     """``acc += sign f_K`` for cell ``c``, ``f_K = (M_L^K - M_C^K) high`` (fixed order).
 
-    ``mats[e]`` is the cell's matrix (indexed in place: a view per cell cost more than the
-    arithmetic).
+    ``mats[e]`` is the cell's matrix ``M_L^K - M_C^K``.
     """
     for m in range(high.shape[1]):
         h0, h1 = high[cells[c, 0], m], high[cells[c, 1], m]
