@@ -123,7 +123,7 @@ class Particles:
         """(n, 8) the domain's corner offsets ``q0x, q0y, .. q3x, q3y`` (zeros: points)."""
         if not self.has_quad:
             return np.zeros((len(self), len(QUAD_FIELDS)))
-        return np.stack([getattr(self, name) for name in QUAD_FIELDS], axis=1)
+        return self.quad_at(slice(None))
 
     def set_quad(self, quad: np.ndarray) -> None:
         """Set the corner offsets from an (n, 8) array."""
@@ -139,7 +139,7 @@ class Particles:
                 setattr(self, name, np.ascontiguousarray(getattr(self, name)))
         return tuple(getattr(self, name) for name in QUAD_FIELDS)
 
-    def quad_at(self, idx: np.ndarray) -> np.ndarray:
+    def quad_at(self, idx: np.ndarray | slice) -> np.ndarray:
         """(len(idx), 8) the corner offsets of particles ``idx``."""
         return np.stack([getattr(self, name)[idx] for name in QUAD_FIELDS], axis=1)
 

@@ -138,8 +138,8 @@ def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj, start, nodes
     for c in start:
         _add_antidiffusion(acc, cells, mats, ids[c], high, c, 1.0)
     alpha = np.ones(n_cells, dtype=np.bool_)
-    cand, n_cand = nodes.copy(), nodes.size
-    cand = np.concatenate((cand, np.empty(n - n_cand, dtype=np.int64)))
+    cand, n_cand = np.empty(n, dtype=np.int64), nodes.size
+    cand[:n_cand] = nodes
     seen = np.zeros(n, dtype=np.bool_)
     bad = np.empty(n, dtype=np.int64)
     passes = 0

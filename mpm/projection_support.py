@@ -84,10 +84,8 @@ def _factors(n, first_end):
 @numba.njit(cache=True, inline="always")
 def _last_inverse(c, inv, n, last_end):
     """``1/denom`` of a line's last node (2/6 on the diagonal at a domain end)."""
-    if n < 2:
-        return inv[0] if not last_end else 1.0 / (2.0 / 6.0)  # never used: n >= 2 lines
-    if not last_end:
-        return inv[n - 1]
+    if n < 2 or not last_end:  # (a one-node line never reads it)
+        return inv[max(n, 1) - 1]
     return 1.0 / (2.0 / 6.0 - (1.0 / 6.0) * c[n - 2])
 
 
