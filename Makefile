@@ -12,7 +12,7 @@ MPI_TIMEOUT ?= 900
 DEMO_CASE ?= cases/inclined_dam_break.yaml
 # rank independence on 3 ranks too (mpich runs 3 on 2 cores): dam breaks on and off the cuts,
 # the TG2/DAMPM rank comparisons and the hard cases
-RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_assembly_mpi.py tests/mpi/test_tg2_mpi.py \
+RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_cell_kernels_mpi.py tests/mpi/test_tg2_mpi.py \
 	tests/mpi/test_exact_sums_mpi.py tests/mpi/test_partition_mpi.py tests/mpi/test_terrain_mpi.py \
 	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py tests/mpi/test_ensemble_mpi.py \
 	tests/mpi/test_restart_mpi.py tests/mpi/test_quadmesh_mpi.py

@@ -25,7 +25,7 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization, Side, cell_integrals
 
 __all__ = ["EDGE_CORNERS", "Edges", "cell_slots", "discretization_from_mesh",
-           "gmsh_discretization"]
+           "gmsh_discretization", "rectangle_edges"]
 
 #: Local corners of the four edges of a DOLFINx quadrilateral (basix reference order).
 EDGE_CORNERS = np.array([[0, 1], [0, 2], [1, 3], [2, 3]], dtype=np.int64)
@@ -157,6 +157,31 @@ def discretization_from_mesh(comm: MPI.Comm, msh: mesh.Mesh, facet_kind: np.ndar
                                         op=MPI.MIN)
     disc.sides = _sides(disc, disc.edges)
     return disc
+
+
+def rectangle_edges(disc: Discretization) -> Edges:
+    """Return the :class:`Edges` of the structured rectangle (TG2-PC's cell-by-cell corrector).
+
+    A boundary facet takes the kind of its side (``disc.sides``); the node coordinates are the
+    grid formula's, so every array is the same bits on any partition. ``mean_weight`` is the
+    exact ¼ of a rectangle.
+    """
+    msh = disc.mesh
+    fdim = msh.topology.dim - 1
+    msh.topology.create_entities(fdim)
+    msh.topology.create_connectivity(fdim, fdim + 1)
+    fmap = msh.topology.index_map(fdim)
+    facets = np.arange(fmap.size_local + fmap.num_ghosts, dtype=np.int32)
+    mid = mesh.compute_midpoints(msh, fdim, facets)
+    xmin, xmax, ymin, ymax = disc.extent
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
+    kinds = np.zeros(facets.size, dtype=np.int64)
+    for side in disc.sides:
+        axis, value = where[side.name]
+        kinds[np.abs(mid[:, axis] - value) < tol] = KIND_CODES[side.kind]
+    weight = np.full(disc.cell_nodes.shape, 0.25)
+    return _edges(msh, disc.coords, disc.cell_nodes, kinds, weight)
 
 
 def cell_slots(comm: MPI.Comm, imap, cell_nodes: np.ndarray,

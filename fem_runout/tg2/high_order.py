@@ -1,17 +1,20 @@
 """TG2-PC's high-order element contributions on the active set (seed eqs. 9–12).
 
-The predictor (DG0) and the corrector (discontinuous Q1) of :mod:`.forms`, assembled by the
-numba :class:`~fem_runout.assembly.VectorAssembler` on the active cells only
-(:class:`~fem_runout.tg2.active.ActiveForms`). Per step the work covers the *wide* cells (the
-active ones and their neighbours, whose DG0 states the corrector's edge terms read):
+The predictor (DG0) and the corrector (discontinuous Q1) whose UFL forms are in :mod:`.forms`,
+computed cell by cell by numba kernels (:mod:`.predictor`, :mod:`.edges`; tested against the
+forms assembled by DOLFINx) on the active cells only (:class:`~fem_runout.active.ActiveSet`).
+Per step the work covers the *wide* cells (the active ones and their neighbours, whose DG0
+states the corrector's edge terms read):
 
 1. the per-cell free surface η̃ (:func:`.low_order.reconstructed_surface`);
 2. the predictor on the active local cells, ghosts included (the same kernel on the same
    data as on the owning rank, so no exchange is needed), giving ``Q_K^{n+1/2}``;
-3. the corrector on the active cells and the facets touching them, summed across ranks.
+3. the corrector on the active owned cells, from their and their neighbours' DG0 states.
 
-Vectors are zeroed whole at every rebuild of the active set and on the wide cells' dofs per
-step; nothing else writes to them, so every entry off the wide cells stays zero.
+Every term carries a factor ``h`` or ``q`` (``∇·q``, ``q⊗u``, ``g h ∇η``, the edge
+fluctuation ``g h̄ [η]``, the open-side ``g h ∂Z/∂n``), so the cells left out would give exact
+zeros. The predictor's vector is zeroed whole at every rebuild of the active set and on the
+wide cells' dofs per step; nothing else writes to it, so every entry off them stays zero.
 """
 
 from __future__ import annotations
@@ -21,11 +24,12 @@ import numba
 import numpy as np
 from dolfinx import fem, la
 
-from fem_runout.mesh import Discretization, facet_measures
-from fem_runout.tg2.active import ActiveForms
+from fem_runout.active import ActiveSet
+from fem_runout.mesh import Discretization
+from fem_runout.quadmesh import rectangle_edges
 from fem_runout.tg2.edges import corrector_cells, edge_dzdn
-from fem_runout.tg2.forms import corrector_form, predictor_form
 from fem_runout.tg2.low_order import reconstructed_surface
+from fem_runout.tg2.predictor import predictor_cells
 
 __all__ = ["HighOrder"]
 
@@ -53,16 +57,6 @@ def _zero_blocks(values, blocks, bs):
     for k in range(flat.shape[0]):
         for c in range(bs):
             values[bs * flat[k] + c] = 0.0
-
-
-@numba.njit(cache=True)
-def _sum_blocks(b0, b1, blocks, out):
-    """``out[k, a, c] = b0[3 d + c] + b1[3 d + c]`` with ``d = blocks[k, a]``."""
-    for k in range(blocks.shape[0]):
-        for a in range(4):
-            d = 3 * blocks[k, a]
-            for c in range(3):
-                out[k, a, c] = b0[d + c] + b1[d + c]
 
 
 @numba.njit(cache=True)
@@ -111,7 +105,7 @@ def _cell_states(cells, h, qx, qy, cell_eta, b, dof0, dofs0, area, w, kappa, Qk,
 
 
 class HighOrder:
-    """The DG fields, forms and vectors of the predictor and corrector.
+    """The DG fields and vectors of the predictor and corrector.
 
     Args:
         disc: The discretization.
@@ -133,30 +127,19 @@ class HighOrder:
         W0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(3,)))
         U0 = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 0, shape=(2,)))
         S0 = fem.functionspace(msh, ("DG", 0))
-        Wd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1, shape=(3,)))
         Sd = fem.functionspace(msh, basix.ufl.element("DG", "quadrilateral", 1))
         self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
         self.uk, self.etak = fem.Function(U0), fem.Function(S0)
-        self.dt = fem.Constant(msh, 0.0)
         self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
-        g = self.gk if slope else fem.Constant(msh, float(gravity))
-        self.pred_form = predictor_form(state, velocity, self.eta_t, W0, self.dt, g)
         self.g_const = -1.0 if slope else float(gravity)
-        if disc.edges is None:  # the rectangle: UFL facet forms (vertical, horizontal)
-            self.corr_form = corrector_form(
-                self.Qk, self.uk, self.etak, Wd, self.dt, g, fem.Constant(msh, kappa), z,
-                facet_measures(disc), disc.spacing,
-            )
-        else:  # unstructured: cell by cell (.edges)
-            self.corr_form = []
+        #: the cell–edge data of the corrector (the rectangle's built here, a gmsh mesh's given)
+        self.edges = disc.edges if disc.edges is not None else rectangle_edges(disc)
         self._dzdn: np.ndarray | None = None  # ∇Z·n at the edges, once Z is set
         self.b_pred = la.vector(W0.dofmap.index_map, 3)
-        self.b_corr = [la.vector(Wd.dofmap.index_map, 3) for _ in self.corr_form]
         nc = disc.cell_nodes.shape[0]
         self._dofs = {
             "dof0": np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64),
             "dofs0": np.asarray(S0.dofmap.list[:nc, 0], dtype=np.int64),
-            "dofd": np.asarray(Wd.dofmap.list[:nc], dtype=np.int64),
             "dofsd": np.asarray(Sd.dofmap.list[:nc], dtype=np.int64),
         }
         if not np.array_equal(self._dofs["dof0"], U0.dofmap.list[:nc, 0]):
@@ -164,20 +147,15 @@ class HighOrder:
         self._key = -1
         self._on: dict[str, np.ndarray] = {}
 
-    def forms(self) -> list[fem.Form]:
-        """Return the predictor and corrector forms (for :class:`ActiveForms`)."""
-        return [self.pred_form, *self.corr_form]
-
-    def contributions(self, active: ActiveForms, gn: np.ndarray | None, dt: float) -> np.ndarray:
-        """Return ``dt A_H[K, i]`` (n_active_owned, 4, 3) of the active owned cells (collective).
+    def contributions(self, active: ActiveSet, gn: np.ndarray | None, dt: float) -> np.ndarray:
+        """Return ``dt A_H[K, i]`` (n_active_owned, 4, 3) of the active owned cells.
 
         Args:
-            active: The active set with the forms' assemblers.
+            active: The active set.
             gn: Nodal ``G`` of the slope form, or None.
             dt: Time step.
         """
         on = self._arrays(active)
-        self.dt.value = dt
         h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
         cells = on["cells"]
         cell_eta = on["cell_eta"]
@@ -185,26 +163,20 @@ class HighOrder:
         _put(self.eta_t.x.array, on["dofsd"], cell_eta)
         if gn is not None:
             _put_cell_means(self.gk.x.array, on["dofs0"], gn, cells)
-        pred, corr = active.predictor, active.forms[1:]
         _zero_blocks(self.b_pred.array, on["dof0"], 3)
-        pred.assemble(self.b_pred.array)
+        dofs, d = self._dofs, self.disc
+        predictor_cells(active.cells, d.cell_nodes, d.coords, h, hu, hv,
+                        self.velocity[0].x.array, self.velocity[1].x.array, self.eta_t.x.array,
+                        dofs["dofsd"], self.gk.x.array, dofs["dofs0"], self.g_const, dt,
+                        dofs["dof0"], self.b_pred.array)
         _cell_states(cells, h, hu, hv, cell_eta, self.b_pred.array, on["dof0"], on["dofs0"],
                      on["area"], on["weight"], self.kappa, self.Qk.x.array, self.uk.x.array,
                      self.etak.x.array)
-        if self.disc.edges is not None:
-            return self._cell_by_cell(active, dt, on["out"])
-        for vec, form in zip(self.b_corr, corr, strict=True):
-            _zero_blocks(vec.array, on["dofd"], 3)
-            form.assemble(vec.array)
-            vec.scatter_reverse(la.InsertMode.add)  # one facet term per dof: exact
-        # cell + vertical facets, then horizontal facets
-        out = on["out"]
-        _sum_blocks(self.b_corr[0].array, self.b_corr[1].array, on["dofd_owned"], out)
-        return out
+        return self._cell_by_cell(active, dt, on["out"])
 
-    def _cell_by_cell(self, active: ActiveForms, dt: float, out: np.ndarray) -> np.ndarray:
-        """Return the corrector of an unstructured mesh (:func:`.edges.corrector_cells`)."""
-        e, dofs, d = self.disc.edges, self._dofs, self.disc
+    def _cell_by_cell(self, active: ActiveSet, dt: float, out: np.ndarray) -> np.ndarray:
+        """Return the corrector of the active owned cells (:func:`.edges.corrector_cells`)."""
+        e, dofs, d = self.edges, self._dofs, self.disc
         if self._dzdn is None:
             self._dzdn = edge_dzdn(self.z.x.array, d.coords, d.cell_nodes, e.normal)
         corrector_cells(active.owned, dofs["dof0"], dofs["dofs0"], self.Qk.x.array,
@@ -213,7 +185,7 @@ class HighOrder:
                         e.corner_edges, e.grad_centre, self._dzdn, out)
         return out
 
-    def _arrays(self, active: ActiveForms) -> dict[str, np.ndarray]:
+    def _arrays(self, active: ActiveSet) -> dict[str, np.ndarray]:
         """Return the wide cells' nodes, dofs and buffers; vectors zeroed at each rebuild."""
         if self._key == active.rebuilds:
             return self._on
@@ -222,14 +194,12 @@ class HighOrder:
         self._on = {
             "cells": np.ascontiguousarray(d.cell_nodes[w]),
             "dof0": dofs["dof0"][w], "dofs0": dofs["dofs0"][w],
-            "dofd": dofs["dofd"][w], "dofsd": dofs["dofsd"][w],
-            "dofd_owned": dofs["dofd"][active.owned],
+            "dofsd": dofs["dofsd"][w],
             "area": d.cell_area[w],
             "weight": np.empty((0, 4)) if d.edges is None else d.edges.mean_weight[w],
             "cell_eta": np.empty((w.size, 4)),
             "out": np.empty((active.owned.size, 4, 3)),
         }
-        for vec in (self.b_pred, *self.b_corr):
-            vec.array[:] = 0.0
+        self.b_pred.array[:] = 0.0
         self._key = active.rebuilds
         return self._on

@@ -21,11 +21,11 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from fem_runout.active import ActiveSet
 from fem_runout.mesh import Discretization, GhostReducer, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
-from fem_runout.tg2.active import ActiveForms
 from fem_runout.tg2.high_order import HighOrder
 from fem_runout.tg2.limiter import Limiter
 from fem_runout.tg2.low_order import (
@@ -101,7 +101,7 @@ class Transport:
                               self.g, self.kappa, slope is not None)
         self.reducer = GhostReducer(disc)
         #: where the step works: the cells near the flow (or, without the active set, all)
-        self.active = ActiveForms(disc, self.reducer, self.high.forms())
+        self.active = ActiveSet(disc, self.reducer)
         self.active_set = active_set
         self.limiter = Limiter(disc, self.gn, self.kappa)
         self.mass_correction = MassCorrection(disc, self.kappa) if mass_correction else None
