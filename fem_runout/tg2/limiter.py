@@ -96,7 +96,7 @@ class Limiter:
                 "local": region.compact_cells("cells"),
                 "beta": np.ascontiguousarray(self.beta_all[region.cells]),
                 "mass": self.disc.lumped_mass[region.nodes],
-                "per_cell2": np.empty((n, 4, 2)), "per_cell3": np.empty((3, n, 4)),
+                "per_cell6": np.empty((n, 4, 6)), "per_cell3": np.empty((3, n, 4)),
             }
             self._key = key
         return self._arrays
@@ -128,18 +128,19 @@ class Limiter:
         upper, lower, near, far = self.bounds(q0, q_low, z, u, region)
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
-        rplus, rminus = np.empty((3, q0.shape[0])), np.empty((3, q0.shape[0]))
+        per_cell = arrays["per_cell6"]  # (P⁺, P⁻) of h, hu, hv: one exchange for the three
         for c in range(3):
             fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
-            fct.flux_sums(flux[c], source[c], arrays["per_cell2"])
-            sums = region.cell_sum(arrays["per_cell2"])
-            qplus, qminus = m * (upper[:, c] - q_low[:, c]), m * (lower[:, c] - q_low[:, c])
-            rplus[c], rminus[c] = fct.zalesak_ratios(sums[:, 0], sums[:, 1], qplus, qminus)
-            if c == 0:  # the depth's sign-free ratio, P floored: continuous where nothing flows
-                floor = m * self.kappa * RATIO_FLOOR
-                soft = np.minimum(
-                    np.minimum(1.0, np.maximum(qplus, 0.0) / np.maximum(sums[:, 0], floor)),
-                    np.minimum(1.0, np.minimum(qminus, 0.0) / np.minimum(sums[:, 1], -floor)))
+            fct.flux_sums(flux[c], source[c], per_cell[:, :, 2 * c: 2 * c + 2])
+        sums = region.cell_sum(per_cell)
+        qplus, qminus = (m[:, None] * (upper - q_low)).T, (m[:, None] * (lower - q_low)).T
+        rplus, rminus = (np.ascontiguousarray(r) for r in fct.zalesak_ratios(
+            sums[:, 0::2].T, sums[:, 1::2].T, qplus, qminus))
+        # the depth's sign-free ratio, P floored: continuous where nothing flows
+        floor = m * self.kappa * RATIO_FLOOR
+        soft = np.minimum(
+            np.minimum(1.0, np.maximum(qplus[0], 0.0) / np.maximum(sums[:, 0], floor)),
+            np.minimum(1.0, np.minimum(qminus[0], 0.0) / np.minimum(sums[:, 1], -floor)))
         cap = np.maximum(self.thin_cap(near, far), soft)
         out = arrays["per_cell3"]
         fct.limit_pairs_sync(arrays["owned"], flux, source, rplus, rminus,
