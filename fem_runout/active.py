@@ -27,8 +27,11 @@ from fem_runout.mesh import Discretization, GhostReducer, Side
 
 __all__ = ["RINGS", "ActiveSet"]
 
-#: Node hops around the wet nodes that the active set covers.
-RINGS = 4
+#: Node hops around the wet nodes that the active set covers: the fewest that hold the
+#: argument above (a step wets at most one more ring). More rings rebuild less often but
+#: visit more dry cells every step: on avaKot (TG2-PC) 4 rings gave 26.3 million active
+#: cell-steps and 51 rebuilds, 2 rings 22.6 million and 140 (the same bits; docs/performance.md).
+RINGS = 2
 
 
 @numba.njit(cache=True)
