@@ -222,24 +222,25 @@ def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
     extrema of the momenta; both states (old and low-order) count.
     """
     for k in range(cells.shape[0]):
+        i0, i1, i2, i3 = cells[k, 0], cells[k, 1], cells[k, 2], cells[k, 3]
         for s in range(2):
             h = h0 if s == 0 else h1
             qx = qx0 if s == 0 else qx1
             qy = qy0 if s == 0 else qy1
-            mx_hi, mx_lo, my_hi, my_lo = -np.inf, np.inf, -np.inf, np.inf
+            mx_hi = max(max(qx[i0], qx[i1]), max(qx[i2], qx[i3]))
+            mx_lo = min(min(qx[i0], qx[i1]), min(qx[i2], qx[i3]))
+            my_hi = max(max(qy[i0], qy[i1]), max(qy[i2], qy[i3]))
+            my_lo = min(min(qy[i0], qy[i1]), min(qy[i2], qy[i3]))
             for a in range(4):
                 i = cells[k, a]
-                mx_hi = max(mx_hi, qx[i])
-                mx_lo = min(mx_lo, qx[i])
-                my_hi = max(my_hi, qy[i])
-                my_lo = min(my_lo, qy[i])
+                h_i, z_i = h[i], z[i]
+                c_hi, c_lo = hi[0, i], lo[0, i]  # the node's extrema kept in registers
                 for b in range(4):
                     j = cells[k, b]
-                    c = hydrostatic_candidate(h[i], z[i], h[j], z[j])
-                    hi[0, i] = max(hi[0, i], c)
-                    lo[0, i] = min(lo[0, i], c)
-            for a in range(4):
-                i = cells[k, a]
+                    c = hydrostatic_candidate(h_i, z_i, h[j], z[j])
+                    c_hi = max(c_hi, c)
+                    c_lo = min(c_lo, c)
+                hi[0, i], lo[0, i] = c_hi, c_lo
                 hi[1, i] = max(hi[1, i], mx_hi)
                 lo[1, i] = min(lo[1, i], mx_lo)
                 hi[2, i] = max(hi[2, i], my_hi)

@@ -95,6 +95,7 @@ class Limiter:
                 "owned": region.compact_cells("owned"),
                 "local": region.compact_cells("cells"),
                 "beta": np.ascontiguousarray(self.beta_all[region.cells]),
+                "beta_norm": np.sqrt(np.square(self.beta_all[region.cells]).sum(axis=2)),
                 "mass": self.disc.lumped_mass[region.nodes],
                 "per_cell6": np.empty((n, 4, 6)), "per_cell3": np.empty((3, n, 4)),
             }
@@ -169,8 +170,10 @@ class Limiter:
         cells = arrays["local"]
         a, b = np.ascontiguousarray(q0.T), np.ascontiguousarray(q_low.T)
         fct.state_bounds(cells, a[0], a[1], a[2], b[0], b[1], b[2], z, hi, lo)
-        bar_state_extrema(cells, arrays["beta"], a[0], u[0], u[1], z,
-                          self.g[region.nodes], hi[1:], lo[1:])
+        g = self.g[region.nodes]
+        speed = np.sqrt(g * np.maximum(a[0], 0.0))
+        bar_state_extrema(cells, arrays["beta"], arrays["beta_norm"], a[0], u[0], u[1], z, g,
+                          speed, hi[1:], lo[1:])
         fct.patch_extrema(cells, b[0], far, near)
         ext[3:6] *= -1.0
         ext[7] *= -1.0

@@ -188,7 +188,7 @@ def reconstructed_surface(cells, h, z, tol, out):
 
 
 @numba.njit(cache=True)
-def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
+def bar_state_extrema(cells, beta, beta_norm, h, ux, uy, z, g, speed, vmax, vmin):
     """Extend per-node momentum bounds by the momenta of the low-order bar states.
 
     The Rusanov update of an interior node is ``U_i + dt/m_i Σ_j 2 d_ij (Ū_ij - U_i)``, a
@@ -201,11 +201,13 @@ def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
     Args:
         cells: (n, 4) local nodes of every local cell (ghost cells too: the whole patch).
         beta: (n, 6, 2) pair coefficients of the same cells.
+        beta_norm: (n, 6) their norms ``|β_ij|``.
         h: Nodal depth.
         ux: Nodal x-velocity (desingularised).
         uy: Nodal y-velocity.
         z: Nodal elevation.
         g: Nodal gravity of the pressure term (``g`` or ``G``).
+        speed: Nodal wave speed ``sqrt(g max(h, 0))``.
         vmax: (2, n_nodes) upper bounds of (hu, hv), extended in place.
         vmin: (2, n_nodes) lower bounds, extended in place.
     """
@@ -215,24 +217,25 @@ def bar_state_extrema(cells, beta, h, ux, uy, z, g, vmax, vmin):
             j = cells[k, PAIRS[p, 1]]
             bx = beta[k, p, 0]
             by = beta[k, p, 1]
-            nb = np.sqrt(bx * bx + by * by)
+            nb = beta_norm[k, p]
             zm = max(z[i], z[j])
             hi_ = max(0.0, h[i] + z[i] - zm)
             hj_ = max(0.0, h[j] + z[j] - zm)
             bu_i = bx * ux[i] + by * uy[i]
             bu_j = bx * ux[j] + by * uy[j]
-            d = max(abs(bu_i) + np.sqrt(g[i] * max(h[i], 0.0)) * nb,
-                    abs(bu_j) + np.sqrt(g[j] * max(h[j], 0.0)) * nb)
+            d = max(abs(bu_i) + speed[i] * nb, abs(bu_j) + speed[j] * nb)
             if d <= 0.0:
                 continue
             dp = 0.5 * (0.5 * (g[i] + g[j])) * (hj_ * hj_ - hi_ * hi_)
-            for c in range(2):
-                ui = ux[i] if c == 0 else uy[i]
-                uj = ux[j] if c == 0 else uy[j]
-                bc = bx if c == 0 else by
-                v = 0.5 * (hi_ * ui + hj_ * uj) - (bu_j * hj_ * uj - bu_i * hi_ * ui
-                                                   + dp * bc) / (2.0 * d)
-                vmax[c, i] = max(vmax[c, i], v)
-                vmin[c, i] = min(vmin[c, i], v)
-                vmax[c, j] = max(vmax[c, j], v)
-                vmin[c, j] = min(vmin[c, j], v)
+            v0 = 0.5 * (hi_ * ux[i] + hj_ * ux[j]) - (bu_j * hj_ * ux[j] - bu_i * hi_ * ux[i]
+                                                      + dp * bx) / (2.0 * d)
+            v1 = 0.5 * (hi_ * uy[i] + hj_ * uy[j]) - (bu_j * hj_ * uy[j] - bu_i * hi_ * uy[i]
+                                                      + dp * by) / (2.0 * d)
+            vmax[0, i] = max(vmax[0, i], v0)
+            vmin[0, i] = min(vmin[0, i], v0)
+            vmax[0, j] = max(vmax[0, j], v0)
+            vmin[0, j] = min(vmin[0, j], v0)
+            vmax[1, i] = max(vmax[1, i], v1)
+            vmin[1, i] = min(vmin[1, i], v1)
+            vmax[1, j] = max(vmax[1, j], v1)
+            vmin[1, j] = min(vmin[1, j], v1)
