@@ -234,7 +234,7 @@ class NumericsSpec(StrictSpec):
     # TG2: consistent-mass correction of the corrector, gated by a smoothness sensor
     # (fem_runout/tg2/mass_correction.py); false: the seed's lumped corrector
     mass_correction: Bool = True
-    active_set: Bool = True  # TG2: assemble on the cells near the flow only (same bits)
+    active_set: Bool = True  # TG2: work on the cells near the flow only (same bits)
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
     # DAMPM: grid-to-particle velocity transfer, FLIP/PIC blend (``flip``) or affine (APIC)
