@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import basix
 import numpy as np
-import ufl
 from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
@@ -360,18 +359,13 @@ class GhostReducer:
         return new
 
 
-def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure | None], ...]:
-    """``(dS, ds_open)`` restricted to the vertical facets, then to the horizontal ones.
+def rectangle_facets(disc: Discretization) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """Return the rectangle's local facets (owned and ghosts), their midpoints, its sides'.
 
-    A node of a cell lies on exactly one vertical and one horizontal edge of that cell, so a
-    form with the cell integrals and the vertical facets, and one with the horizontal facets,
-    each give every discontinuous-Q1 dof at most one facet term: their sums (also across
-    ranks) are a single addition, the same bits on any partition (:mod:`fem_runout.cellsum`).
-    ``ds_open`` is None when every side is a wall. Tags: 1/2 vertical/horizontal facets,
-    3/4 vertical/horizontal facets of the open sides.
+    Returns:
+        ``(facets, midpoints, on)``: ``on[name]`` is the bool mask of the facets on side
+        ``name`` (left, right, bottom, top).
     """
-    xmin, xmax, ymin, ymax = disc.extent
-    dx, dy = disc.spacing
     msh = disc.mesh
     fdim = msh.topology.dim - 1
     msh.topology.create_entities(fdim)
@@ -379,21 +373,8 @@ def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure
     fmap = msh.topology.index_map(fdim)
     facets = np.arange(fmap.size_local + fmap.num_ghosts, dtype=np.int32)
     mid = mesh.compute_midpoints(msh, fdim, facets)
-    fx = (mid[:, 0] - xmin) / dx
-    vertical = np.abs(fx - np.round(fx)) < 0.25
-    values = np.where(vertical, 1, 2).astype(np.int32)
+    xmin, xmax, ymin, ymax = disc.extent
     tol = 1e-9 * max(xmax - xmin, ymax - ymin)
     where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
-    open_sides = [s.name for s in disc.sides if s.kind == "open"]
-    for name in open_sides:
-        axis, value = where[name]
-        values[np.abs(mid[:, axis] - value) < tol] += 2
-    tags = mesh.meshtags(msh, fdim, facets, values)
-    md = {"quadrature_degree": 1}
-    out = []
-    for k in (1, 2):
-        dS = ufl.Measure("dS", domain=msh, subdomain_data=tags, subdomain_id=k, metadata=md)
-        ds = (ufl.Measure("ds", domain=msh, subdomain_data=tags, subdomain_id=k + 2,
-                          metadata=md) if open_sides else None)
-        out.append((dS, ds))
-    return tuple(out)
+    return facets, mid, {name: np.abs(mid[:, axis] - value) < tol
+                         for name, (axis, value) in where.items()}

@@ -22,7 +22,7 @@ import numpy as np
 from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization, Side, cell_integrals
+from fem_runout.mesh import Discretization, Side, cell_integrals, rectangle_facets
 
 __all__ = ["EDGE_CORNERS", "Edges", "cell_slots", "discretization_from_mesh",
            "gmsh_discretization", "rectangle_edges"]
@@ -166,22 +166,12 @@ def rectangle_edges(disc: Discretization) -> Edges:
     grid formula's, so every array is the same bits on any partition. ``mean_weight`` is the
     exact ¼ of a rectangle.
     """
-    msh = disc.mesh
-    fdim = msh.topology.dim - 1
-    msh.topology.create_entities(fdim)
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    fmap = msh.topology.index_map(fdim)
-    facets = np.arange(fmap.size_local + fmap.num_ghosts, dtype=np.int32)
-    mid = mesh.compute_midpoints(msh, fdim, facets)
-    xmin, xmax, ymin, ymax = disc.extent
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
+    facets, _, on = rectangle_facets(disc)
     kinds = np.zeros(facets.size, dtype=np.int64)
     for side in disc.sides:
-        axis, value = where[side.name]
-        kinds[np.abs(mid[:, axis] - value) < tol] = KIND_CODES[side.kind]
+        kinds[on[side.name]] = KIND_CODES[side.kind]
     weight = np.full(disc.cell_nodes.shape, 0.25)
-    return _edges(msh, disc.coords, disc.cell_nodes, kinds, weight)
+    return _edges(disc.mesh, disc.coords, disc.cell_nodes, kinds, weight)
 
 
 def cell_slots(comm: MPI.Comm, imap, cell_nodes: np.ndarray,

@@ -13,9 +13,8 @@ from dolfinx import fem, la
 from mpi4py import MPI
 
 from fem_runout.config import load_case
-from fem_runout.mesh import facet_measures
 from fem_runout.tg2.edges import corrector_cells, edge_dzdn
-from fem_runout.tg2.forms import corrector_form, predictor_form
+from fem_runout.tg2.forms import corrector_form, facet_measures, predictor_form
 from fem_runout.tg2.predictor import predictor_cells
 from fem_runout.tg2.solver import build_tg2
 

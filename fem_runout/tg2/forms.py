@@ -1,4 +1,7 @@
-"""UFL forms of the TG2-PC transport step (seed §3.1, eqs. 9–12), compiled once per run.
+"""UFL forms of the TG2-PC transport step (seed §3.1, eqs. 9–12): the definition.
+
+Runs compute the same integrals cell by cell (:mod:`.predictor`, :mod:`.edges`);
+``tests/test_cell_kernels.py`` assembles these forms with DOLFINx and compares.
 
 Predictor (eq. 10, first line), into DG0 with the exact DG0 mass ``|K|``:
 
@@ -25,9 +28,11 @@ by the two cells. Boundary fluxes are added nodally by the solver.
 
 from __future__ import annotations
 
+import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, mesh
 
+from fem_runout.mesh import Discretization, rectangle_facets
 from fem_runout.tg2.low_order import BANK_SLOPE
 
 
@@ -79,7 +84,7 @@ def corrector_form(
 ) -> list[fem.Form]:
     """Linear forms of the high-order corrector element contributions (eqs. 10–12).
 
-    One form per ``(dS, ds_open)`` pair of ``measures`` (:func:`fem_runout.mesh.facet_measures`:
+    One form per ``(dS, ds_open)`` pair of ``measures`` (:func:`facet_measures`:
     vertical, then horizontal facets); the cell integrals go into the first. Their sum is the
     corrector; split this way every dof gets one facet term per form, so the assembled sums
     do not depend on the partition.
@@ -132,3 +137,32 @@ def corrector_form(
             form = form - dt * 0.5 * g * hk * jump * ufl.dot(n, psi_m) * ds_open
         forms.append(fem.form(form))
     return forms
+
+
+def facet_measures(disc: Discretization) -> tuple[tuple[ufl.Measure, ufl.Measure | None], ...]:
+    """``(dS, ds_open)`` restricted to the vertical facets, then to the horizontal ones.
+
+    A node of a cell lies on exactly one vertical and one horizontal edge of that cell, so a
+    form with the cell integrals and the vertical facets, and one with the horizontal facets,
+    each give every discontinuous-Q1 dof at most one facet term: their sums (also across
+    ranks) are a single addition, the same bits on any partition (:mod:`fem_runout.cellsum`).
+    ``ds_open`` is None when every side is a wall. Tags: 1/2 vertical/horizontal facets,
+    3/4 vertical/horizontal facets of the open sides.
+    """
+    msh = disc.mesh
+    facets, mid, on = rectangle_facets(disc)
+    fx = (mid[:, 0] - disc.extent[0]) / disc.spacing[0]
+    vertical = np.abs(fx - np.round(fx)) < 0.25
+    values = np.where(vertical, 1, 2).astype(np.int32)
+    open_sides = [s.name for s in disc.sides if s.kind == "open"]
+    for name in open_sides:
+        values[on[name]] += 2
+    tags = mesh.meshtags(msh, msh.topology.dim - 1, facets, values)
+    md = {"quadrature_degree": 1}
+    out = []
+    for k in (1, 2):
+        dS = ufl.Measure("dS", domain=msh, subdomain_data=tags, subdomain_id=k, metadata=md)
+        ds = (ufl.Measure("ds", domain=msh, subdomain_data=tags, subdomain_id=k + 2,
+                          metadata=md) if open_sides else None)
+        out.append((dS, ds))
+    return tuple(out)
