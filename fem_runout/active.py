@@ -35,14 +35,28 @@ RINGS = 2
 
 
 @numba.njit(cache=True)
-def _grow(cells, flag, out):
-    """``out[i] = max(out[i], max over the cells around i of flag at their nodes)``."""
-    for k in range(cells.shape[0]):
-        m = max(max(flag[cells[k, 0]], flag[cells[k, 1]]), max(flag[cells[k, 2]],
-                                                               flag[cells[k, 3]]))
-        for a in range(4):
-            i = cells[k, a]
-            out[i] = max(out[i], m)
+def _grow(offsets, around, cells, flagged, flag, out):
+    """``out[i] = max(out[i], flag[j])`` for each node ``i`` sharing a cell with a flagged ``j``.
+
+    The cells around ``j`` are ``around[offsets[j]:offsets[j + 1]]``. With ``flag >= 0`` and
+    zero off ``flagged``, the max over the cells around each node of ``flag`` at their nodes,
+    visiting only the flagged nodes' cells.
+    """
+    for j in flagged:
+        f = flag[j]
+        for p in range(offsets[j], offsets[j + 1]):
+            k = around[p]
+            for a in range(4):
+                i = cells[k, a]
+                out[i] = max(out[i], f)
+
+
+@numba.njit(cache=True)
+def _mark_cells(offsets, around, flagged, mark):
+    """``mark[k] = True`` for every cell around a node of ``flagged``."""
+    for j in flagged:
+        for p in range(offsets[j], offsets[j + 1]):
+            mark[around[p]] = True
 
 
 class ActiveSet:
@@ -77,6 +91,7 @@ class ActiveSet:
         self.rebuilds = 0
         self.seed: np.ndarray | None = None  # the wet nodes the set was last built around
         self._cache: dict[object, object] = {}
+        self._csr: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def active_cells(self) -> int:
@@ -115,20 +130,40 @@ class ActiveSet:
         hops = [wet]
         for _ in range(self.rings + 2):
             hops.append(self._grow(hops[-1]))
-        cells = self.disc.cell_nodes
         self.inner = hops[-4] > 0.0
-        self.mask = hops[-3][cells].max(axis=1) > 0.0
+        self.mask = self._cells_around(hops[-3])
         self.cells = np.flatnonzero(self.mask)
         self.owned = self.cells[self.cells < self.disc.n_owned_cells]
-        self.wide = np.flatnonzero(hops[-2][cells].max(axis=1) > 0.0)
+        self.wide = np.flatnonzero(self._cells_around(hops[-2]))
         self.nodes = np.flatnonzero(hops[-1] > 0.0)
         self._cache = {}
         self.rebuilds += 1
 
+    def _around(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the local cells around each local node (CSR offsets and cells), built once."""
+        if self._csr is None:
+            cells = self.disc.cell_nodes
+            node = cells.ravel()
+            order = np.argsort(node, kind="stable")
+            offsets = np.zeros(self.disc.coords.shape[0] + 1, dtype=np.int64)
+            np.cumsum(np.bincount(node, minlength=offsets.size - 1), out=offsets[1:])
+            self._csr = (offsets, (order // 4).astype(np.int64))
+        return self._csr
+
+    def _cells_around(self, flag: np.ndarray) -> np.ndarray:
+        """(n_cells_local,) bool: the cells with a node where ``flag > 0``."""
+        mark = np.zeros(self.disc.cell_nodes.shape[0], dtype=bool)
+        _mark_cells(*self._around(), np.flatnonzero(flag > 0.0), mark)
+        return mark
+
     def _grow(self, flag: np.ndarray) -> np.ndarray:
-        """One node hop: the max over the cells around each node, then over the ranks."""
+        """One node hop: the max over the cells around each node, then over the ranks.
+
+        Only the cells around the flagged nodes are visited: a rebuild costs what the flow
+        covers, not the mesh.
+        """
         out = flag.copy()
-        _grow(self.disc.cell_nodes, flag, out)
+        _grow(*self._around(), self.disc.cell_nodes, np.flatnonzero(flag > 0.0), flag, out)
         self._reducer.reduce(out, "max")
         return out
 
