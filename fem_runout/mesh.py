@@ -360,7 +360,7 @@ class GhostReducer:
 
 
 def rectangle_facets(disc: Discretization) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Return the rectangle's local facets (owned and ghosts), their midpoints, its sides'.
+    """Return the rectangle's local facets (owned and ghosts), midpoints and sides' facets.
 
     Returns:
         ``(facets, midpoints, on)``: ``on[name]`` is the bool mask of the facets on side

@@ -186,7 +186,7 @@ class HighOrder:
         return out
 
     def _arrays(self, active: ActiveSet) -> dict[str, np.ndarray]:
-        """Return the wide cells' nodes, dofs and buffers; vectors zeroed at each rebuild."""
+        """Return the wide cells' nodes, dofs, buffers; zero the predictor's vector per rebuild."""
         if self._key == active.rebuilds:
             return self._on
         d, w = self.disc, active.wide
