@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from dolfinx import la
-from dolfinx.la import InsertMode
 from mpi4py import MPI
 
 from fem_runout import cellsum
 from fem_runout.mesh import Discretization, GhostReducer, Side
+from fem_runout.shared_nodes import SharedRows
 
 __all__ = ["RINGS", "ActiveSet"]
 
@@ -189,8 +188,8 @@ class ActiveSet:
             self.inverse[self.disc.cell_nodes[getattr(self, which)]]))
 
     @property
-    def reducer(self) -> GhostReducer:
-        """Max/min over the ranks of compact arrays."""
+    def reducer(self) -> SharedRows:
+        """Exchanges of compact arrays over the set's shared nodes (max/min, sums)."""
         return self._cached("reducer", lambda: self._reducer.on(self.nodes))
 
     @property
@@ -210,7 +209,7 @@ class ActiveSet:
             return out
         return self._cached("sides", make)
 
-    def cell_sum(self, contrib: np.ndarray) -> np.ndarray:
+    def cell_sum(self, contrib: np.ndarray, also_max: np.ndarray | None = None) -> np.ndarray:
         """``Σ_K contrib[K, a]`` per node of the set over the active owned cells (compact).
 
         The same bits as :meth:`fem_runout.mesh.Discretization.cell_sum` of the whole mesh with
@@ -219,34 +218,25 @@ class ActiveSet:
         Args:
             contrib: (n_active_owned, 4) or (n_active_owned, 4, bs), rows in :attr:`owned`'s
                 order.
+            also_max: (k, n_set_nodes) compact values reduced in place (max over the ranks
+                sharing a node) in the same exchange.
 
         Returns:
             (n_set_nodes,) or (n_set_nodes, bs), row k for local node ``nodes[k]`` (owned and
             ghosts).
         """
-        d = self.disc
         bs = 1 if contrib.ndim == 2 else contrib.shape[2]
-        src, vec = self._sum_data(bs)
+        src = self._sources()
         flat = np.ascontiguousarray(contrib.reshape(-1, bs))
         out = np.empty((self.nodes.size, bs))
-        if vec is None:
-            cellsum.gather_total(src, flat, out)
-        else:
-            # the buffer is zero off the nodes (fresh at each rebuild, and every rank
-            # agrees on the nodes), so the exchange adds exact zeros there
-            buf = vec.array.reshape(d.coords.shape[0], d.n_slots, bs)
-            cellsum.gather_on(src, flat, self.nodes, buf)
-            vec.scatter_reverse(InsertMode.add)  # each slot has one non-zero: exact
-            vec.scatter_forward()
-            cellsum.total_on(buf, self.nodes, out)
+        cellsum.gather_total(src, flat, out)
+        self.reducer.cell_sum(src, flat, out, also_max)  # the shared nodes' totals over the ranks
         return out[:, 0] if contrib.ndim == 2 else out
 
-    def _sum_data(self, bs: int) -> tuple[np.ndarray, la.Vector | None]:
-        """Slot sources of the nodes and (in parallel) a zeroed exchange buffer, per rebuild."""
+    def _sources(self) -> np.ndarray:
+        """Slot sources (:func:`fem_runout.cellsum.sources`) of the set's nodes, per rebuild."""
         def make():
-            d = self.disc
-            idx = self.owned
+            d, idx = self.disc, self.owned
             src = cellsum.sources(d.cell_nodes[idx], d.slot[idx], d.coords.shape[0], d.n_slots)
-            vec = None if d.comm.size == 1 else la.vector(d.V.dofmap.index_map, d.n_slots * bs)
-            return np.ascontiguousarray(src[self.nodes]), vec
-        return self._cached(("sum", bs), make)
+            return np.ascontiguousarray(src[self.nodes])
+        return self._cached("sources", make)

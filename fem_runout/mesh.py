@@ -16,6 +16,7 @@ from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
 from fem_runout import cellsum
+from fem_runout.shared_nodes import SharedRows
 
 SIDES = ("left", "right", "bottom", "top")
 SIDE_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
@@ -279,8 +280,8 @@ class GhostReducer:
 
     dolfinx scatters only add or insert; the FCT bounds need the extremum over a node's whole
     patch, which straddles ranks. Ghost entries are sent to their owners, reduced there, and the
-    result is sent back to the ghosts (exact: max, min and copies). :meth:`on` gives a reducer
-    of arrays that hold a subset of the local nodes (the active set's).
+    result is sent back to the ghosts (exact: max, min and copies). :meth:`on` gives the
+    exchanges of arrays that hold a subset of the local nodes (the active set's).
     """
 
     def __init__(self, disc: Discretization) -> None:
@@ -300,8 +301,6 @@ class GhostReducer:
              (self.send_counts, np.concatenate([[0], np.cumsum(self.send_counts)[:-1]]))],
             [recv, (recv_counts, np.concatenate([[0], np.cumsum(recv_counts)[:-1]]))])
         self.recv_local = (recv - imap.local_range[0]).astype(np.int64)
-        #: positions of the ghosts and of the owned copies in the reduced arrays (-1: absent)
-        self.send_pos, self.recv_pos = self.send_local, self.recv_local
 
     def _exchange(self, send: np.ndarray, recv: np.ndarray, back: bool = False,
                   width: int = 1) -> None:
@@ -329,34 +328,34 @@ class GhostReducer:
             return
         rows = values if values.ndim == 2 else values[np.newaxis]  # a view: reduced in place
         k = rows.shape[0]
-        ident = -np.inf if op == "max" else np.inf
-        sent = self.send_pos >= 0
-        send = np.full((self.send_pos.size, k), ident)
-        send[sent] = rows[:, self.send_pos[sent]].T
-        recv = np.empty((self.recv_pos.size, k))
+        send = np.ascontiguousarray(rows[:, self.send_local].T)
+        recv = np.empty((self.recv_local.size, k))
         self._exchange(send, recv, width=k)
-        here = self.recv_pos >= 0
         ufunc = np.maximum if op == "max" else np.minimum
         for r in range(k):
-            ufunc.at(rows[r], self.recv_pos[here], recv[here, r])
-        back = np.zeros((self.recv_pos.size, k))
-        back[here] = rows[:, self.recv_pos[here]].T
-        ghosts = np.empty((self.send_pos.size, k))
+            ufunc.at(rows[r], self.recv_local, recv[:, r])
+        back = np.ascontiguousarray(rows[:, self.recv_local].T)
+        ghosts = np.empty((self.send_local.size, k))
         self._exchange(back, ghosts, back=True, width=k)
-        rows[:, self.send_pos[sent]] = ghosts[sent].T
+        rows[:, self.send_local] = ghosts.T
 
-    def on(self, nodes: np.ndarray) -> GhostReducer:
-        """Return a reducer of arrays ``a`` with ``a[k]`` the value at local node ``nodes[k]``.
+    def on(self, nodes: np.ndarray) -> SharedRows:
+        """Return the exchanges of compact arrays ``a``, ``a[k]`` the value at ``nodes[k]``.
 
         Every rank must hold the same set of shared nodes (as the active set's nodes are);
-        nodes off the set take no part.
+        only the set's shared nodes are sent (:mod:`fem_runout.shared_nodes`).
         """
         inv = np.full(self.disc.coords.shape[0], -1, dtype=np.int64)
         inv[nodes] = np.arange(nodes.size)
-        new = object.__new__(GhostReducer)
-        new.__dict__.update(self.__dict__)
-        new.send_pos, new.recv_pos = inv[self.send_local], inv[self.recv_local]
-        return new
+        ranks = np.arange(self.comm.size)
+        ghost = inv[self.send_local]
+        owned = inv[self.recv_local]
+        keep_g, keep_o = ghost >= 0, owned >= 0
+        return SharedRows(
+            self.comm, ghost[keep_g],
+            np.bincount(np.repeat(ranks, self.send_counts)[keep_g], minlength=ranks.size),
+            owned[keep_o],
+            np.bincount(np.repeat(ranks, self.recv_counts)[keep_o], minlength=ranks.size))
 
 
 def rectangle_facets(disc: Discretization) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:

@@ -12,14 +12,22 @@ travel angle ``α`` (Heim's *Fahrböschung*) along its path, meets the ground
 (:func:`reachable`). With ``α`` = :data:`REACH_ANGLE_DEG` (below the run-out angles of
 avalanches, 18-30°, and of most debris flows) the estimate holds the path. The mesh is then
 cut across the path's main direction (the principal axis of the path's cells) into pieces of
-equal length along it (:func:`strip_owners`). On avaKot (TG2-PC, 2 ranks) the owned active
-cells summed over the run are 4.96 and 8.22 million with DOLFINx's partition and with a cut
-at the median of the path's cells (the flow spends most of its time in the release fan and
-the deposit, not evenly along the path), and 7.07 and 6.12 million with pieces of equal
-length. Cutting the path lengthwise balanced the path's cells but not the flow (the wide
-release fan lay on one side); stripes across it dealt to the ranks in turn balanced the flow
-to 0.3 %, but their many edges made every ghost exchange of the whole vectors (DOLFINx's
-scatters) several times dearer, and the run slower.
+equal length along it (:func:`strip_owners`), :data:`PIECES_PER_RANK` per rank, dealt to the
+ranks in turn (0, 1, 0, 1 on 2 ranks), so that every rank holds flow both in the release and
+in the run-out zone.
+
+On avaKot (TG2-PC, 2 ranks) the owned active cells summed over the run are 4.96 and 8.22
+million with DOLFINx's partition and with a cut at the median of the path's cells (the flow
+spends most of its time in the release fan and the deposit, not evenly along the path), and
+7.07 and 6.12 million with two pieces of equal length. Balanced sums are not enough: the flow
+fills the path's upper piece first and the lower one later, so the ranks wait for each other
+in turn. What counts is the sum over the steps of the larger rank's share, against the even
+split: 1.21 with two pieces, 1.05 with four dealt in turn (2 per rank; 1.08 with 8, 1.05 with
+16), and on 3 ranks 1.42 with three pieces, 1.09 with six. More pieces add cut edges, which
+cost little now that a step exchanges only the flow's shared nodes
+(:mod:`fem_runout.shared_nodes`; with DOLFINx's whole-vector scatters 8 stripes made the run
+slower). Cutting the path lengthwise balanced the path's cells but not the flow (the wide
+release fan lay on one side).
 
 The partition changes only which rank computes which cell: the results do not depend on it
 (tested on 1, 2 and 3 ranks). It applies to cases with ``initial.release``; cases without a
@@ -33,12 +41,15 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
-__all__ = ["REACH_ANGLE_DEG", "cell_partitioner", "path_owners", "reachable", "strip_owners"]
+__all__ = ["PIECES_PER_RANK", "REACH_ANGLE_DEG", "cell_partitioner", "path_owners", "reachable",
+           "strip_owners"]
 
 #: Travel angle [deg] bounding the reachable region (a lower bound of observed run-outs).
 REACH_ANGLE_DEG = 12.0
 #: Cells added on each side of the routed paths.
 PATH_HALF_WIDTH = 3
+#: Pieces of the path per rank, dealt in turn (see the module's docstring).
+PIECES_PER_RANK = 2
 
 
 @numba.njit(cache=True)
@@ -125,6 +136,9 @@ def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
                 nparts: int) -> np.ndarray | None:
     """Owner of every structured cell (index ``j nx + i``), or None (nothing released).
 
+    The path is cut into ``PIECES_PER_RANK * nparts`` pieces of equal length along it, dealt
+    to the ranks in turn.
+
     Args:
         centres: (nx ny, 2) cell centres, row-major.
         z: Elevation at the centres [m].
@@ -137,7 +151,9 @@ def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
     path = reachable(z.reshape(ny, nx), (released > 0.0).reshape(ny, nx), spacing).ravel()
     if nparts < 2 or not path.any():
         return None
-    return strip_owners(centres[:, 0], centres[:, 1], path.astype(float), nparts)
+    pieces = strip_owners(centres[:, 0], centres[:, 1], path.astype(float),
+                          PIECES_PER_RANK * nparts)
+    return (pieces % nparts).astype(np.int32)  # dealt in turn along the path
 
 
 def cell_partitioner(owners: np.ndarray, nx: int) -> Callable:

@@ -2,7 +2,13 @@
 
 import numpy as np
 
-from fem_runout.partition import PATH_HALF_WIDTH, reachable, strip_owners
+from fem_runout.partition import (
+    PATH_HALF_WIDTH,
+    PIECES_PER_RANK,
+    path_owners,
+    reachable,
+    strip_owners,
+)
 
 
 def test_routing_follows_the_steepest_descent_and_stops_at_the_travel_angle():
@@ -39,3 +45,24 @@ def test_pieces_along_the_path_have_equal_lengths_of_it():
             mean = np.array([owners[on_path & (x == c)].mean() for c in columns])
             step = np.diff(mean)
             assert np.all(step >= 0) or np.all(step <= 0)
+
+
+def test_path_pieces_are_dealt_to_the_ranks_in_turn():
+    nx, ny, dx = 200, 41, 10.0
+    x = (np.arange(nx) + 0.5) * dx
+    ground = np.where(x < 500.0, 1000.0 - 0.6 * x, 700.0 - 0.1 * (x - 500.0))
+    z = np.tile(ground, (ny, 1)) + 0.01 * np.abs(np.arange(ny) - 20)[:, None]
+    released = np.zeros((ny, nx))
+    released[18:23, 2:6] = 2.0
+    jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    centres = np.stack([(ii.ravel() + 0.5) * dx, (jj.ravel() + 0.5) * dx], axis=1)
+    path = reachable(z, released > 0.0, (dx, dx)).ravel()
+    for parts in (2, 3):
+        owners = path_owners(centres, z.ravel(), released.ravel(), (nx, ny), (dx, dx), parts)
+        share = np.bincount(owners[path], minlength=parts) / path.sum()
+        assert np.abs(share - 1.0 / parts).max() < 0.05, share
+        # along the path the owner changes PIECES_PER_RANK * parts - 1 times: 0, 1, (2,) 0, 1...
+        columns = np.unique(centres[path, 0])
+        first = np.array([owners[path & (centres[:, 0] == c)].min() for c in columns])
+        runs = first[np.r_[True, np.diff(first) != 0]]
+        assert runs.tolist() == [k % parts for k in range(PIECES_PER_RANK * parts)]

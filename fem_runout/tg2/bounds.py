@@ -13,7 +13,7 @@ import numpy as np
 
 from fem_runout.mesh import Discretization, GhostReducer
 
-__all__ = ["SPEED_MARGIN", "bound_speed", "deeper_patch_max", "node_slopes"]
+__all__ = ["SPEED_MARGIN", "bound_speed", "deeper_patch_max", "node_slopes", "patch_speed_max"]
 
 #: Allowed overshoot of the speed bound, in local wave speeds sqrt(g h) (see bound_speed).
 SPEED_MARGIN = 0.35
@@ -59,15 +59,35 @@ def deeper_patch_max(cells, speed, depth, z, g, gn, vmax):
                 vmax[i] = max(vmax[i], rho * max(reach - 2.0 * ci, 0.0))
 
 
-def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: np.ndarray,
-                z: np.ndarray, g: float, speed: np.ndarray,
-                gn: np.ndarray | None = None) -> None:
+def patch_speed_max(cells: np.ndarray, q_low: np.ndarray, z: np.ndarray, g: float,
+                    speed: np.ndarray, gn: np.ndarray) -> np.ndarray:
+    """Return this rank's part of the patch speed bound of :func:`bound_speed`.
+
+    :func:`deeper_patch_max` over the local cells. The caller reduces it (max) over the
+    ranks sharing a node before :func:`bound_speed`;
+    the transport does so in the limiter's exchange of its bounds.
+
+    Args:
+        cells: (n_cells_local, 4) local nodes of every local cell.
+        q_low: (n, 3) low-order state ``h, hu, hv``.
+        z: Nodal bed elevation.
+        g: Gravity [m/s²].
+        speed: (n,) desingularised low-order speed.
+        gn: (n,) nodal gravity of the wave speeds.
+    """
+    smax = np.zeros(q_low.shape[0])
+    deeper_patch_max(cells, np.ascontiguousarray(speed), np.ascontiguousarray(q_low[:, 0]), z,
+                     g, gn, smax)
+    return smax
+
+
+def bound_speed(q_low: np.ndarray, q: np.ndarray, smax: np.ndarray, gn: np.ndarray) -> None:
     """Bound each node's speed by what its patch can feed it (continuous in the data).
 
     The limiter bounds the momenta, not the velocity; in a draining layer (h → 0) the
     momentum antidiffusion can leave ``|q| / h`` far above any neighbour's speed. The bound
     at node ``i`` is ``max_j ρ_ij [sqrt((|u_j| + 2 c_j)² + 2 g max(Z_j - Z_i, 0)) - 2 c_i]
-    + SPEED_MARGIN c_i`` over the nodes ``j`` of its patch (:func:`deeper_patch_max`,
+    + SPEED_MARGIN c_i`` over the nodes ``j`` of its patch (:func:`patch_speed_max`,
     low-order state, ``c = sqrt(g h)``), plus a margin of ``SPEED_MARGIN`` local wave speeds
     for smooth high-order overshoots. Where the speed is above, the momentum is scaled back
     to the bound, direction kept: ``q ← q min(1, h s_max / |q|)``, a Lipschitz map. The
@@ -87,22 +107,13 @@ def bound_speed(cells: np.ndarray, reducer: GhostReducer, q_low: np.ndarray, q: 
     the continuous weight ρ, so a 1e-15 change of a depth no longer moves the bound by O(1).
 
     Args:
-        cells: (n_cells_local, 4) local nodes of every local cell.
-        reducer: Max-reduction over the ranks that share a node.
         q_low: (n, 3) low-order state ``h, hu, hv``.
         q: (n, 3) new state, momenta scaled in place.
-        z: Nodal bed elevation.
-        g: Gravity [m/s²].
-        speed: (n,) desingularised low-order speed.
-        gn: (n,) nodal gravity of the wave speeds (default ``g`` everywhere).
+        smax: (n,) :func:`patch_speed_max` reduced over the ranks.
+        gn: (n,) nodal gravity of the wave speeds (``g``, or the slope form's ``G``).
     """
-    depth = np.ascontiguousarray(q_low[:, 0])
-    gn = np.full(q.shape[0], float(g)) if gn is None else gn
-    smax = np.zeros(q.shape[0])
-    deeper_patch_max(cells, np.ascontiguousarray(speed), depth, z, g, gn, smax)
-    reducer.reduce(smax, "max")
     norm = np.hypot(q[:, 1], q[:, 2])
-    wave = np.sqrt(gn * np.maximum(depth, 0.0))
+    wave = np.sqrt(gn * np.maximum(q_low[:, 0], 0.0))
     limit = np.maximum(q[:, 0], 0.0) * (smax + SPEED_MARGIN * wave)
     over = norm > limit
     q[over, 1:] *= (limit[over] / norm[over])[:, None]

@@ -103,7 +103,8 @@ class Limiter:
         return self._arrays
 
     def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
-                   u: np.ndarray, region: ActiveSet) -> np.ndarray:
+                   u: np.ndarray, region: ActiveSet,
+                   bounds: tuple[np.ndarray, ...] | None = None) -> np.ndarray:
         """Limited corrections ``m_i (Q_i^{n+1} - Q_i^L)`` of (h, hu, hv) (collective).
 
         Synchronized (:func:`.fct.limit_pairs_sync`): each pair's fluxes of ``h``, ``hu``,
@@ -120,13 +121,16 @@ class Limiter:
             u: (2, n) desingularised nodal velocity of ``q0``.
             region: The active set (every node of an active cell has its whole patch in it,
                 or a dry patch: the bounds are the whole mesh's).
+            bounds: :meth:`bounds` of this state if the caller has them (it may reduce
+                :meth:`local_extrema` in an exchange of its own), else computed here.
 
         Returns:
             (n, 3) compact corrections.
         """
         arrays = self._on(region)
         m = arrays["mass"]
-        upper, lower, near, far = self.bounds(q0, q_low, z, u, region)
+        upper, lower, near, far = self.bounds(q0, q_low, z, u, region) if bounds is None \
+            else bounds
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
         per_cell = arrays["per_cell6"]  # (P⁺, P⁻) of h, hu, hv: one exchange for the three
@@ -154,12 +158,23 @@ class Limiter:
 
         Compact arrays, over the active cells' patches (whole patches, or dry ones). Also
         returns the patch minimum and maximum of the low-order depth (``near``, ``far``), the
-        former relaxing the depth's upper bound at the shoreline (:data:`SHORE_SLACK`). The
-        eight patch extrema are reduced over the ranks in one exchange (minima as maxima of
-        the negated values, which is exact).
+        former relaxing the depth's upper bound at the shoreline (:data:`SHORE_SLACK`).
+        :meth:`local_extrema`, reduced over the ranks, then :meth:`finish_bounds`.
         """
-        nn = q0.shape[0]
-        ext = np.empty((8, nn))  # max of h, hu, hv; -min of h, hu, hv; max h^L, -min h^L
+        ext = self.local_extrema(q0, q_low, z, u, region)
+        region.reducer.reduce(ext, "max")
+        return self.finish_bounds(ext, q_low)
+
+    def local_extrema(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
+                      region: ActiveSet, extra: np.ndarray | None = None) -> np.ndarray:
+        """Return this rank's eight patch extrema as maxima, (8, n) or (9, n) with ``extra``.
+
+        Rows: the maxima of h, hu, hv (states and bar states), the negated minima of the same,
+        the maximum and the negated minimum of the low-order depth, then ``extra`` if given.
+        Reduced over the ranks with one max exchange (minima as maxima of the negated values:
+        exact) they give :meth:`finish_bounds`.
+        """
+        ext = np.empty((8 if extra is None else 9, q0.shape[0]))
         hi, lo = ext[0:3], ext[3:6]
         hi.fill(-np.inf)
         lo.fill(np.inf)
@@ -177,9 +192,14 @@ class Limiter:
         fct.patch_extrema(cells, b[0], far, near)
         ext[3:6] *= -1.0
         ext[7] *= -1.0
-        region.reducer.reduce(ext, "max")
-        ext[3:6] *= -1.0
-        ext[7] *= -1.0
+        if extra is not None:
+            ext[8] = extra
+        return ext
+
+    def finish_bounds(self, ext: np.ndarray, q_low: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Return the bounds of :meth:`bounds` from the reduced :meth:`local_extrema`."""
+        hi, lo = ext[0:3], -ext[3:6]
+        far, near = ext[6], -ext[7]
         slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
         hi[1:] += slack
         lo[1:] -= slack

@@ -104,7 +104,7 @@ class MassCorrection:
         return self._arrays
 
     def add(self, aec: np.ndarray, high: np.ndarray, boundary: np.ndarray, h: np.ndarray,
-            mass: np.ndarray, region: ActiveSet) -> None:
+            mass: np.ndarray, region: ActiveSet, also_max: np.ndarray | None = None) -> None:
         """Add the gated correction to the antidiffusive contributions (collective).
 
         Args:
@@ -114,12 +114,14 @@ class MassCorrection:
             h: (n,) depth at the start of the step (compact).
             mass: (n,) lumped mass (compact).
             region: The active set.
+            also_max: (k, n) compact values the caller needs reduced (max over the ranks, in
+                place): done in this exchange.
         """
         arrays = self._on(region)
         buf, cells = arrays["buf"], arrays["cells"]
         buf[:, :, :3] = high
         sensor_sums(cells, h, buf)
-        sums = region.cell_sum(buf)  # one exchange for ΔQ^H and the sensor
+        sums = region.cell_sum(buf, also_max)  # one exchange for ΔQ^H, the sensor, also_max
         dq = (sums[:, :3] + boundary) / mass[:, None]
         sensor = np.abs(sums[:, 3]) / (sums[:, 4] + self.delta)
         add_correction(cells, arrays["mc"], dq, sensor, aec)

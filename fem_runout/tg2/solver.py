@@ -61,9 +61,9 @@ class TG2Solver:
 
         Friction and rheology are implicit or stabilised and do not limit the step.
         """
-        dt = self.transport.stable_dt()
+        dt, slope_dt = self.transport.stable_dt(with_slope=True)
         dt = dt if self.reaction is None else 2.0 * dt
-        return min(dt, self.transport.acceleration_dt())
+        return min(dt, slope_dt)
 
     def advance(self, dt: float) -> None:
         """One step of size dt (Strang-split when there is a diffusion–reaction part).

@@ -110,6 +110,7 @@ class Transport:
         self._fresh = False  # low-order rates of the current state are cached
         self._dt = 0.0  # the step being taken
         self._anywhere = True  # the state was set on every node (not just the set's)
+        self._sums = np.empty((0, 4))  # nodal sums of the low-order rates and capacities
         self._active_key, self._on = -1, {}
 
     # -- state -----------------------------------------------------------------------------
@@ -135,16 +136,22 @@ class Transport:
         self._anywhere = True
 
     # -- time step ---------------------------------------------------------------------------
-    def stable_dt(self) -> float:
+    def stable_dt(self, with_slope: bool = False) -> float | tuple[float, float]:
         """Largest dt for which the low-order update keeps h >= 0 (CFL number 1).
 
         ``dt = min_i m_i / (Σ_j (d_ij + |β_ij·u_i|) + Σ_open w_i max(u_i·n, 0))``, with the
         eigenvalues ``|u·n| + sqrt(g h)`` of the full system in ``d_ij``. The low-order rates of
         the same pass are kept for the next :meth:`step`.
+
+        Args:
+            with_slope: Also return :meth:`acceleration_dt` (one reduction for both).
+
+        Returns:
+            The CFL limit, or ``(CFL limit, acceleration limit)``.
         """
-        d, a = self.disc, self.active
+        a = self.active
         self._low_order_pass()
-        cap = a.cell_sum(self._arrays()["cap"])
+        cap = self._sums[:, 3].copy()
         nodes = a.nodes
         for side in a.sides():
             if side.kind == "open":
@@ -154,8 +161,12 @@ class Transport:
         own = slice(0, a.n_owned_nodes)
         c, m = cap[own], self._arrays()["mass"][own]
         ratio = m[c > 0.0] / c[c > 0.0]
-        local = float(ratio.min()) if ratio.size else np.inf
-        return d.comm.allreduce(local, op=MPI.MIN)
+        local = np.array([float(ratio.min()) if ratio.size else np.inf,
+                          -self._local_slope() if with_slope else 0.0])
+        self.disc.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MIN)
+        if not with_slope:
+            return float(local[0])
+        return float(local[0]), acceleration_limit(self.disc.min_cell_size, self.g, -local[1])
 
     def acceleration_dt(self) -> float:
         """Return ``sqrt(Δx / (g S_max))``, ``S_max`` the steepest bed slope at a wet node.
@@ -165,14 +176,17 @@ class Transport:
         one to a layer at rest on 40° (the ``Z`` slope is computed once, patch maximum of the
         cell-mean gradients).
         """
+        top = self.disc.comm.allreduce(self._local_slope(), op=MPI.MAX)
+        return acceleration_limit(self.disc.min_cell_size, self.g, top)
+
+    def _local_slope(self) -> float:
+        """Steepest bed slope at this rank's owned nodes, weighted by ``min(1, h/δ)``."""
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
         own = slice(0, self.disc.n_owned_nodes)
         wet = np.clip(self.h.x.array[own] / self.wet_depth, 0.0, 1.0)  # continuous wet weight
         s = self._slope[own] * wet
-        local = float(s.max()) if s.size else 0.0
-        top = self.disc.comm.allreduce(local, op=MPI.MAX)
-        return acceleration_limit(self.disc.min_cell_size, self.g, top)
+        return float(s.max()) if s.size else 0.0
 
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L and capacities of the state, on the active set."""
@@ -193,6 +207,8 @@ class Transport:
         on["cap"][:] = 0.0
         low_order_pass(on["cells"], on["beta"], on["C"], h, hu, hv, z, self.ux.x.array,
                        self.uy.x.array, self.gn, self.kappa, on["lo"], on["cap"])
+        # nodal sums of the rates and of the capacities in one exchange
+        self._sums = self.active.cell_sum(on["lo_cap"])
         self._fresh = True
 
     def _arrays(self) -> dict[str, object]:
@@ -208,11 +224,14 @@ class Transport:
                 "cells": np.ascontiguousarray(self.disc.cell_nodes[idx]),
                 "beta": np.ascontiguousarray(self._beta[idx]),
                 "C": np.ascontiguousarray(self.disc.C[idx]),
-                "lo": np.empty((idx.size, 4, 3)), "cap": np.empty((idx.size, 4)),
+                "lo_cap": np.empty((idx.size, 4, 4)),
                 "nodes": nodes, "mass": self.disc.lumped_mass[nodes],
                 "z": self.z.x.array[nodes],
                 "slope": None if self.slope is None else self.slope.take(nodes),
             }
+            # the rates A_L and the capacities are views of one array: summed together
+            self._on["lo"], self._on["cap"] = self._on["lo_cap"][:, :, :3], \
+                self._on["lo_cap"][:, :, 3]
             self._active_key = self.active.rebuilds
         return self._on
 
@@ -230,16 +249,24 @@ class Transport:
         q0 = self.state_on(nodes)
         u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
         boundary = self._boundary_flux(q0, u)
-        q_low = q0 + dt * (a.cell_sum(arrays["lo"]) + boundary) / m[:, None]
+        q_low = q0 + dt * (self._sums[:, :3] + boundary) / m[:, None]
         aec = high - dt * arrays["lo"]
+        # the limiter's patch extrema and the speed bound (maxima over the ranks) travel in the
+        # mass correction's exchange
+        smax = self._patch_speed(q_low, z)
+        ext = self.limiter.local_extrema(q0, q_low, z, u, a, smax) if self.fct_enabled \
+            else smax[np.newaxis]
         if self.mass_correction is not None:
-            self.mass_correction.add(aec, high, dt * boundary, q0[:, 0], m, a)
+            self.mass_correction.add(aec, high, dt * boundary, q0[:, 0], m, a, also_max=ext)
+        else:
+            a.reducer.reduce(ext, "max")
         if self.fct_enabled:
-            corr = self.limiter.correction(q0, q_low, aec, z, u, a)
+            corr = self.limiter.correction(q0, q_low, aec, z, u, a,
+                                           self.limiter.finish_bounds(ext, q_low))
         else:
             corr = a.cell_sum(aec)
         q_new = q_low + corr / m[:, None]
-        self._bound_speed(q_low, q_new, z)
+        bounds.bound_speed(q_low, q_new, ext[-1], self.gn[nodes])
         self._finalise(q_new, q0, u)
         self.set_state_on(nodes, q_new)
 
@@ -265,14 +292,14 @@ class Transport:
             flux[i, 2] -= w * q[i, 2] * un
         return flux
 
-    def _bound_speed(self, q_low: np.ndarray, q: np.ndarray, z: np.ndarray) -> None:
-        """Scale back momenta above the patch speed bound (:func:`.bounds.bound_speed`)."""
-        ux, uy = np.empty(q.shape[0]), np.empty(q.shape[0])
+    def _patch_speed(self, q_low: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Return this rank's part of the patch speed bound (:func:`.bounds.patch_speed_max`)."""
+        ux, uy = np.empty(q_low.shape[0]), np.empty(q_low.shape[0])
         velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
                  np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
         a = self.active
-        bounds.bound_speed(a.compact_cells("cells"), a.reducer, q_low, q, z, self.g,
-                           np.hypot(ux, uy), self.gn[a.nodes])
+        return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g,
+                                      np.hypot(ux, uy), self.gn[a.nodes])
 
     def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
@@ -286,16 +313,8 @@ class Transport:
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
         # so that the runner stops with a message
         local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
-        comm = self.disc.comm
-        hmax = comm.allreduce(local, op=MPI.MAX)  # global: the same threshold on any partition
-        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
-        q[tiny, 0] = 0.0
-        # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
-        thin = q[:, 0] < self.kappa
-        ht = np.maximum(q[thin, 0], 0.0)
-        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
-        out = 0.0
         owned = a.n_owned_nodes
+        out = 0.0
         for side in sides:
             if side.kind == "open":
                 own = side.nodes < owned
@@ -303,4 +322,13 @@ class Transport:
                 n = side.normal[own]
                 un = np.maximum(u[0, i] * n[:, 0] + u[1, i] * n[:, 1], 0.0)
                 out += float(np.sum(side.weight[own] * q0[i, 0] * un))
-        self.outflow_volume += self._dt * comm.allreduce(out)
+        # one exchange: the largest depth (the same threshold on any partition), the outflow
+        every = self.disc.comm.allgather((local, out))
+        hmax = max(h for h, _ in every)
+        self.outflow_volume += self._dt * sum(o for _, o in every)
+        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
+        q[tiny, 0] = 0.0
+        # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
+        thin = q[:, 0] < self.kappa
+        ht = np.maximum(q[thin, 0], 0.0)
+        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
