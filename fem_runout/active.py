@@ -51,6 +51,15 @@ def _grow(offsets, around, cells, flagged, flag, out):
 
 
 @numba.njit(cache=True)
+def _wet_inside(q, rows, inner):
+    """Whether every row of ``q`` with a non-zero entry is at a node where ``inner`` holds."""
+    for k in range(q.shape[0]):
+        if (q[k, 0] != 0.0 or q[k, 1] != 0.0 or q[k, 2] != 0.0) and not inner[rows[k]]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
 def _mark_cells(offsets, around, flagged, mark):
     """``mark[k] = True`` for every cell around a node of ``flagged``."""
     for j in flagged:
@@ -108,13 +117,12 @@ class ActiveSet:
         Returns:
             True when the set was rebuilt.
         """
-        wet_rows = np.any(q != 0.0, axis=1)
-        wet_idx = np.flatnonzero(wet_rows) if nodes is None else nodes[wet_rows]
-        inside = self.inner is not None and bool(np.all(self.inner[wet_idx]))
+        rows = np.arange(q.shape[0]) if nodes is None else nodes
+        inside = self.inner is not None and _wet_inside(q, rows, self.inner)
         if self.disc.comm.allreduce(inside, op=MPI.LAND):
             return False
         wet = np.zeros(self.disc.coords.shape[0])
-        wet[wet_idx] = 1.0
+        wet[rows[np.any(q != 0.0, axis=1)]] = 1.0
         self.rebuild(wet)
         return True
 

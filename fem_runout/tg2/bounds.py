@@ -112,11 +112,33 @@ def bound_speed(q_low: np.ndarray, q: np.ndarray, smax: np.ndarray, gn: np.ndarr
         smax: (n,) :func:`patch_speed_max` reduced over the ranks.
         gn: (n,) nodal gravity of the wave speeds (``g``, or the slope form's ``G``).
     """
-    norm = np.hypot(q[:, 1], q[:, 2])
-    wave = np.sqrt(gn * np.maximum(q_low[:, 0], 0.0))
-    limit = np.maximum(q[:, 0], 0.0) * (smax + SPEED_MARGIN * wave)
-    over = norm > limit
-    q[over, 1:] *= (limit[over] / norm[over])[:, None]
+    _scale_speed(q_low, q, smax, gn, SPEED_MARGIN)
+
+
+@numba.njit(cache=True)
+def _scale_speed(q_low, q, smax, gn, margin):
+    """Scale the momenta of ``q`` down to the speed bound (the loop of :func:`bound_speed`)."""
+    for i in range(q.shape[0]):
+        norm = np.hypot(q[i, 1], q[i, 2])
+        wave = np.sqrt(gn[i] * max(q_low[i, 0], 0.0))
+        limit = max(q[i, 0], 0.0) * (smax[i] + margin * wave)
+        if norm > limit:
+            r = limit / norm
+            q[i, 1] *= r
+            q[i, 2] *= r
+
+
+@numba.njit(cache=True)
+def low_order_speed(q, kappa, out):
+    """Write ``|u_i|`` of the rows ``(h, hu, hv)`` of ``q`` into ``out``.
+
+    Desingularised as :func:`fem_runout.tg2.low_order.velocity` (the same operations).
+    """
+    for i in range(q.shape[0]):
+        hp = max(q[i, 0], 0.0)
+        hk = max(q[i, 0], kappa)
+        f = 2.0 * hp / (hp * hp + hk * hk)
+        out[i] = np.hypot(q[i, 1] * f, q[i, 2] * f)
 
 
 def node_slopes(disc: Discretization, z: np.ndarray, reducer: GhostReducer) -> np.ndarray:

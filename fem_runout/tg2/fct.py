@@ -130,6 +130,40 @@ def zalesak_ratios(
 
 
 @numba.njit(cache=True)
+def synced_ratios(sums, mass, upper, lower, q_low, floor, rplus, rminus, soft):
+    """:func:`zalesak_ratios` of (h, hu, hv) in one pass, and the depth's sign-free ratio.
+
+    ``Q^± = m_i (u^± - u^L)`` from the bounds; ``sums[i, 2c]``, ``sums[i, 2c + 1]`` are
+    ``P^±`` of variable ``c``. ``soft[i] = min(min(1, max(Q⁺_h, 0) / max(P⁺_h, floor_i)),
+    min(1, min(Q⁻_h, 0) / min(P⁻_h, -floor_i)))`` (see
+    :meth:`fem_runout.tg2.limiter.Limiter.correction`). The same operations as the array
+    formulas, the same bits.
+
+    Args:
+        sums: (n, 6) ``P⁺, P⁻`` of h, hu, hv.
+        mass: (n,) lumped masses.
+        upper: (n, 3) upper bounds.
+        lower: (n, 3) lower bounds.
+        q_low: (n, 3) low-order state.
+        floor: (n,) floor of ``|P|`` in the sign-free ratio.
+        rplus: (3, n) ``R⁺`` (output).
+        rminus: (3, n) ``R⁻`` (output).
+        soft: (n,) the sign-free depth ratio (output).
+    """
+    for i in range(mass.shape[0]):
+        for c in range(3):
+            qp = mass[i] * (upper[i, c] - q_low[i, c])
+            qm = mass[i] * (lower[i, c] - q_low[i, c])
+            pp, pm = sums[i, 2 * c], sums[i, 2 * c + 1]
+            rplus[c, i] = min(1.0, max(qp, 0.0) / pp) if pp > 0.0 else 1.0
+            rminus[c, i] = min(1.0, min(qm, 0.0) / pm) if pm < 0.0 else 1.0
+            if c == 0:
+                up = min(1.0, max(qp, 0.0) / max(pp, floor[i]))
+                down = min(1.0, min(qm, 0.0) / min(pm, -floor[i]))
+                soft[i] = min(up, down)
+
+
+@numba.njit(cache=True)
 def patch_extrema(cells, values, vmax, vmin):
     """Extend ``vmax``/``vmin`` per node by the extrema of ``values`` over each cell's nodes.
 
@@ -249,7 +283,7 @@ def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
 
 @numba.njit(cache=True)
 def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
-    """Limit the pair fluxes of (h, hu, hv) together, per cell and node (``out[c, K, a]``).
+    """Limit the pair fluxes of (h, hu, hv) together, per cell and node (``out[K, a, c]``).
 
     Each pair flux ``f_c`` first gets its own Zalesak factor ``α_c`` (as in
     :func:`limit_pairs`), then the common factor ``α = min_c (1 - (1 - α_c) s_c / s_max)``
@@ -271,7 +305,7 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
         rminus: (3, n_nodes) ``R⁻`` per variable.
         speed: (n_nodes,) flow speed ``|u|``.
         cap: (n_nodes,) cap of the momentum fluxes.
-        out: (3, n, 4) output.
+        out: (n, 4, 3) output.
     """
     alpha = np.empty(3)
     sig = np.empty(3)
@@ -281,7 +315,7 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
             for a in range(4):
                 i = cells[k, a]
                 r = rplus[c, i] if mu > 0.0 else rminus[c, i]
-                out[c, k, a] = mu * (r if c == 0 else min(r, cap[i]))
+                out[k, a, c] = mu * (r if c == 0 else min(r, cap[i]))
         for p in range(6):
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
@@ -305,5 +339,5 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
                 if c > 0:
                     factor = min(factor, min(cap[i], cap[j]))
                 f = flux[c, k, p] * factor
-                out[c, k, a] += f
-                out[c, k, b] -= f
+                out[k, a, c] += f
+                out[k, b, c] -= f

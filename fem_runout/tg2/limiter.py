@@ -97,7 +97,7 @@ class Limiter:
                 "beta": np.ascontiguousarray(self.beta_all[region.cells]),
                 "beta_norm": np.sqrt(np.square(self.beta_all[region.cells]).sum(axis=2)),
                 "mass": self.disc.lumped_mass[region.nodes],
-                "per_cell6": np.empty((n, 4, 6)), "per_cell3": np.empty((3, n, 4)),
+                "per_cell6": np.empty((n, 4, 6)), "per_cell3": np.empty((n, 4, 3)),
             }
             self._key = key
         return self._arrays
@@ -138,19 +138,17 @@ class Limiter:
             fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
             fct.flux_sums(flux[c], source[c], per_cell[:, :, 2 * c: 2 * c + 2])
         sums = region.cell_sum(per_cell)
-        qplus, qminus = (m[:, None] * (upper - q_low)).T, (m[:, None] * (lower - q_low)).T
-        rplus, rminus = (np.ascontiguousarray(r) for r in fct.zalesak_ratios(
-            sums[:, 0::2].T, sums[:, 1::2].T, qplus, qminus))
-        # the depth's sign-free ratio, P floored: continuous where nothing flows
-        floor = m * self.kappa * RATIO_FLOOR
-        soft = np.minimum(
-            np.minimum(1.0, np.maximum(qplus[0], 0.0) / np.maximum(sums[:, 0], floor)),
-            np.minimum(1.0, np.minimum(qminus[0], 0.0) / np.minimum(sums[:, 1], -floor)))
+        nn = m.shape[0]
+        rplus, rminus, soft = np.empty((3, nn)), np.empty((3, nn)), np.empty(nn)
+        # Zalesak's ratios, and the depth's sign-free ratio with P floored (continuous where
+        # nothing flows)
+        fct.synced_ratios(sums, m, upper, lower, q_low, m * self.kappa * RATIO_FLOOR, rplus,
+                          rminus, soft)
         cap = np.maximum(self.thin_cap(near, far), soft)
         out = arrays["per_cell3"]
         fct.limit_pairs_sync(arrays["owned"], flux, source, rplus, rminus,
                              np.hypot(u[0], u[1]), cap, out)
-        return region.cell_sum(np.ascontiguousarray(out.transpose(1, 2, 0)))
+        return region.cell_sum(out)
 
     def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
                region: ActiveSet) -> tuple[np.ndarray, ...]:

@@ -52,6 +52,19 @@ def _scatter_state(h, hu, hv, nodes, q):
         h[i], hu[i], hv[i] = q[k, 0], q[k, 1], q[k, 2]
 
 
+@numba.njit(cache=True)
+def _settle(q, floor, kappa, kappa2):
+    """Round-off depths in ``(floor, 0)`` to 0; thin-layer momenta damped (see ``_finalise``)."""
+    for i in range(q.shape[0]):
+        if q[i, 0] < 0.0 and q[i, 0] > floor:
+            q[i, 0] = 0.0
+        if q[i, 0] < kappa:
+            ht = max(q[i, 0], 0.0)
+            f = 2.0 * ht * ht / (ht * ht + kappa2)
+            q[i, 1] *= f
+            q[i, 2] *= f
+
+
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
 WET_DEPTH = 1e3
 
@@ -294,12 +307,11 @@ class Transport:
 
     def _patch_speed(self, q_low: np.ndarray, z: np.ndarray) -> np.ndarray:
         """Return this rank's part of the patch speed bound (:func:`.bounds.patch_speed_max`)."""
-        ux, uy = np.empty(q_low.shape[0]), np.empty(q_low.shape[0])
-        velocity(np.ascontiguousarray(q_low[:, 0]), np.ascontiguousarray(q_low[:, 1]),
-                 np.ascontiguousarray(q_low[:, 2]), self.kappa, ux, uy)
+        speed = np.empty(q_low.shape[0])
+        bounds.low_order_speed(q_low, self.kappa, speed)
         a = self.active
-        return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g,
-                                      np.hypot(ux, uy), self.gn[a.nodes])
+        return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g, speed,
+                                      self.gn[a.nodes])
 
     def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
@@ -326,9 +338,4 @@ class Transport:
         every = self.disc.comm.allgather((local, out))
         hmax = max(h for h, _ in every)
         self.outflow_volume += self._dt * sum(o for _, o in every)
-        tiny = (q[:, 0] < 0.0) & (q[:, 0] > -1e-13 * max(hmax, 1e-300))
-        q[tiny, 0] = 0.0
-        # thin layers: momenta damped by 2h²/(h² + κ²) below κ (1 at κ, 0 at h = 0: continuous)
-        thin = q[:, 0] < self.kappa
-        ht = np.maximum(q[thin, 0], 0.0)
-        q[thin, 1:] *= (2.0 * ht * ht / (ht * ht + self.kappa**2))[:, None]
+        _settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)
