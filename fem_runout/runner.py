@@ -115,6 +115,7 @@ class Runner:
         self.at_rest = False
         self.info = StepInfo(0.0, 0.0, 0)
         self._rest_since: float | None = None
+        self._motion: tuple[float, float] | None = None  # motion() of the state, once a step
         self._peak_energy = 0.0
         self._n_out, self._last_output = 1, 0.0
 
@@ -185,6 +186,7 @@ class Runner:
             clock = time.perf_counter()
             dt = self._next_dt(info.t, self._n_out * s.every)
             solver.advance(dt)
+            self._motion = None
             clock = time.perf_counter() - clock
             problem = solver.health() or self._too_fast()
             if problem is not None:
@@ -217,7 +219,7 @@ class Runner:
         limit = self.schedule.max_speed
         if limit is None:
             return None
-        speed = max_speed(self.solver, self.schedule.rest_depth)
+        speed = self._motion_now()[0]
         if speed > limit:
             return f"speed {speed:.4g} m/s above numerics.max_speed = {limit:g} m/s"
         return None
@@ -243,7 +245,7 @@ class Runner:
         s = self.schedule
         if s.rest_speed is None:
             return False
-        speed, energy = motion(self.solver, s.rest_depth, s.rest_energy is not None)
+        speed, energy = self._motion_now()
         self._peak_energy = max(self._peak_energy, energy)
         slow = s.rest_energy is not None and energy < s.rest_energy * self._peak_energy
         if speed >= s.rest_speed and not slow:
@@ -253,6 +255,18 @@ class Runner:
             self._rest_since = info.t
         self.at_rest = info.t - self._rest_since >= s.rest_duration - 1e-12
         return self.at_rest
+
+    def _motion_now(self) -> tuple[float, float]:
+        """:func:`motion` of the state after the step, computed once for both of its uses.
+
+        The speed limit and the rest criterion read the same largest speed (and the energy if
+        the rest criterion uses it): one set of reductions per step (collective).
+        """
+        if self._motion is None:
+            s = self.schedule
+            energy = s.rest_speed is not None and s.rest_energy is not None
+            self._motion = motion(self.solver, s.rest_depth, energy)
+        return self._motion
 
     def _next_dt(self, t: float, next_output: float) -> float:
         s = self.schedule
