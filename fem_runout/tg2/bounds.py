@@ -3,7 +3,7 @@
 * :func:`bound_speed`: a node's speed may not exceed what its deeper neighbours can feed it
   (Riemann invariant of a rarefaction plus the fall down the bed), so drying layers drain.
 * :func:`node_slopes`: the bed slope per node, for the time-step limit from the slope
-  acceleration (:meth:`.transport.Transport.acceleration_dt`).
+  acceleration (:meth:`.transport.Transport.stable_dt`).
 """
 
 from __future__ import annotations

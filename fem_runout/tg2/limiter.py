@@ -102,9 +102,8 @@ class Limiter:
             self._key = key
         return self._arrays
 
-    def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, z: np.ndarray,
-                   u: np.ndarray, region: ActiveSet,
-                   bounds: tuple[np.ndarray, ...] | None = None) -> np.ndarray:
+    def correction(self, q0: np.ndarray, q_low: np.ndarray, aec: np.ndarray, u: np.ndarray,
+                   region: ActiveSet, bounds: tuple[np.ndarray, ...]) -> np.ndarray:
         """Limited corrections ``m_i (Q_i^{n+1} - Q_i^L)`` of (h, hu, hv) (collective).
 
         Synchronized (:func:`.fct.limit_pairs_sync`): each pair's fluxes of ``h``, ``hu``,
@@ -117,20 +116,18 @@ class Limiter:
             q_low: (n, 3) low-order state.
             aec: (n_active_owned, 4, 3) antidiffusive element contributions of the active
                 owned cells (``region.owned``; the others contribute exact zeros).
-            z: (n,) bed elevation.
             u: (2, n) desingularised nodal velocity of ``q0``.
             region: The active set (every node of an active cell has its whole patch in it,
                 or a dry patch: the bounds are the whole mesh's).
-            bounds: :meth:`bounds` of this state if the caller has them (it may reduce
-                :meth:`local_extrema` in an exchange of its own), else computed here.
+            bounds: :meth:`finish_bounds` of this state's :meth:`local_extrema`, reduced
+                over the ranks (the caller does that in an exchange of its own).
 
         Returns:
             (n, 3) compact corrections.
         """
         arrays = self._on(region)
         m = arrays["mass"]
-        upper, lower, near, far = self.bounds(q0, q_low, z, u, region) if bounds is None \
-            else bounds
+        upper, lower, near, far = bounds
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
         per_cell = arrays["per_cell6"]  # (P⁺, P⁻) of h, hu, hv: one exchange for the three
@@ -150,25 +147,13 @@ class Limiter:
                              np.hypot(u[0], u[1]), cap, out)
         return region.cell_sum(out)
 
-    def bounds(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
-               region: ActiveSet) -> tuple[np.ndarray, ...]:
-        """Upper and lower bounds (n, 3), each containing the low-order state (collective).
-
-        Compact arrays, over the active cells' patches (whole patches, or dry ones). Also
-        returns the patch minimum and maximum of the low-order depth (``near``, ``far``), the
-        former relaxing the depth's upper bound at the shoreline (:data:`SHORE_SLACK`).
-        :meth:`local_extrema`, reduced over the ranks, then :meth:`finish_bounds`.
-        """
-        ext = self.local_extrema(q0, q_low, z, u, region)
-        region.reducer.reduce(ext, "max")
-        return self.finish_bounds(ext, q_low)
-
     def local_extrema(self, q0: np.ndarray, q_low: np.ndarray, z: np.ndarray, u: np.ndarray,
                       region: ActiveSet, extra: np.ndarray | None = None) -> np.ndarray:
         """Return this rank's eight patch extrema as maxima, (8, n) or (9, n) with ``extra``.
 
-        Rows: the maxima of h, hu, hv (states and bar states), the negated minima of the same,
-        the maximum and the negated minimum of the low-order depth, then ``extra`` if given.
+        Compact arrays, over the active cells' patches (whole patches, or dry ones). Rows:
+        the maxima of h, hu, hv (states and bar states), the negated minima of the same, the
+        maximum and the negated minimum of the low-order depth, then ``extra`` if given.
         Reduced over the ranks with one max exchange (minima as maxima of the negated values:
         exact) they give :meth:`finish_bounds`.
         """
@@ -195,7 +180,12 @@ class Limiter:
         return ext
 
     def finish_bounds(self, ext: np.ndarray, q_low: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Return the bounds of :meth:`bounds` from the reduced :meth:`local_extrema`."""
+        """Upper and lower bounds (n, 3), each containing the low-order state.
+
+        From :meth:`local_extrema` reduced over the ranks. Also returns the patch minimum and
+        maximum of the low-order depth (``near``, ``far``), the former relaxing the depth's
+        upper bound at the shoreline (:data:`SHORE_SLACK`).
+        """
         hi, lo = ext[0:3], -ext[3:6]
         far, near = ext[6], -ext[7]
         slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
@@ -217,6 +207,6 @@ class Limiter:
         3 m/s in a Coulomb pit; with an absolute threshold alone (``h < 1e3 κ``) a 4 mm
         layer on rough terrain reached 22 m/s (free-fall bound 21 m/s; 15 m/s with the
         relative ramp). The ramp replaces the former switch "a node of the cell is thinner
-        than 1e3 κ". ``near``, ``far``: the patch extrema of :meth:`bounds`.
+        than 1e3 κ". ``near``, ``far``: the patch extrema of :meth:`finish_bounds`.
         """
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)

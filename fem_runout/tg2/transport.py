@@ -157,7 +157,11 @@ class Transport:
         the same pass are kept for the next :meth:`step`.
 
         Args:
-            with_slope: Also return :meth:`acceleration_dt` (one reduction for both).
+            with_slope: Also return the slope-acceleration limit (one reduction for both):
+                ``sqrt(Δx / (g S_max))``, ``S_max`` the steepest bed slope at a wet node, so
+                that a layer starting at rest on the slope moves at most half a cell in one
+                step. The wave speed alone (``sqrt(g h)``) allowed a 3 s step to a 1e-4 m
+                film on a slope and a 6 s one to a layer at rest on 40°.
 
         Returns:
             The CFL limit, or ``(CFL limit, acceleration limit)``.
@@ -181,19 +185,11 @@ class Transport:
             return float(local[0])
         return float(local[0]), acceleration_limit(self.disc.min_cell_size, self.g, -local[1])
 
-    def acceleration_dt(self) -> float:
-        """Return ``sqrt(Δx / (g S_max))``, ``S_max`` the steepest bed slope at a wet node.
-
-        A layer starting at rest on the slope moves at most half a cell in one step. The wave
-        speed alone (``sqrt(g h)``) allowed a 3 s step to a 1e-4 m film on a slope and a 6 s
-        one to a layer at rest on 40° (the ``Z`` slope is computed once, patch maximum of the
-        cell-mean gradients).
-        """
-        top = self.disc.comm.allreduce(self._local_slope(), op=MPI.MAX)
-        return acceleration_limit(self.disc.min_cell_size, self.g, top)
-
     def _local_slope(self) -> float:
-        """Steepest bed slope at this rank's owned nodes, weighted by ``min(1, h/δ)``."""
+        """Steepest bed slope at this rank's owned nodes, weighted by ``min(1, h/δ)``.
+
+        The ``Z`` slope is computed once: the patch maximum of the cell-mean gradients.
+        """
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
         own = slice(0, self.disc.n_owned_nodes)
@@ -266,7 +262,8 @@ class Transport:
         aec = high - dt * arrays["lo"]
         # the limiter's patch extrema and the speed bound (maxima over the ranks) travel in the
         # mass correction's exchange
-        smax = self._patch_speed(q_low, z)
+        gn = self.gn[nodes]
+        smax = self._patch_speed(q_low, z, gn)
         ext = self.limiter.local_extrema(q0, q_low, z, u, a, smax) if self.fct_enabled \
             else smax[np.newaxis]
         if self.mass_correction is not None:
@@ -274,12 +271,12 @@ class Transport:
         else:
             a.reducer.reduce(ext, "max")
         if self.fct_enabled:
-            corr = self.limiter.correction(q0, q_low, aec, z, u, a,
+            corr = self.limiter.correction(q0, q_low, aec, u, a,
                                            self.limiter.finish_bounds(ext, q_low))
         else:
             corr = a.cell_sum(aec)
         q_new = q_low + corr / m[:, None]
-        bounds.bound_speed(q_low, q_new, ext[-1], self.gn[nodes])
+        bounds.bound_speed(q_low, q_new, ext[-1], gn)
         self._finalise(q_new, q0, u)
         self.set_state_on(nodes, q_new)
 
@@ -305,13 +302,12 @@ class Transport:
             flux[i, 2] -= w * q[i, 2] * un
         return flux
 
-    def _patch_speed(self, q_low: np.ndarray, z: np.ndarray) -> np.ndarray:
+    def _patch_speed(self, q_low: np.ndarray, z: np.ndarray, gn: np.ndarray) -> np.ndarray:
         """Return this rank's part of the patch speed bound (:func:`.bounds.patch_speed_max`)."""
         speed = np.empty(q_low.shape[0])
         bounds.low_order_speed(q_low, self.kappa, speed)
         a = self.active
-        return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g, speed,
-                                      self.gn[a.nodes])
+        return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g, speed, gn)
 
     def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray) -> None:
         """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
