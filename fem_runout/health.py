@@ -12,7 +12,26 @@ import numpy as np
 
 from fem_runout.callbacks import flow_index
 
-__all__ = ["locate"]
+__all__ = ["locate", "reduce_flag"]
+
+
+def reduce_flag(comm, flag: int, also_max: np.ndarray | None = None) -> int:
+    """Largest of the ranks' health flags (collective: one max reduction).
+
+    Args:
+        comm: The communicator.
+        flag: This rank's flag (0: good; the solvers' codes otherwise).
+        also_max: Values maximised over the ranks in the same message (in place): the
+            runner's largest speed and stop signal ride along with every step's check.
+    """
+    from mpi4py import MPI
+
+    extra = np.zeros(0) if also_max is None else np.asarray(also_max, dtype=float).ravel()
+    values = np.concatenate([[float(flag)], extra])
+    comm.Allreduce(MPI.IN_PLACE, values, op=MPI.MAX)
+    if also_max is not None:
+        also_max[...] = values[1:].reshape(np.shape(also_max))
+    return int(values[0])
 
 
 def _badness(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, depth: float) -> np.ndarray:

@@ -67,18 +67,30 @@ def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, f
     """
     from mpi4py import MPI
 
-    imap = solver.V.dofmap.index_map
+    top, terms = local_motion(solver, depth, energy)
+    solver.comm.Allreduce(MPI.IN_PLACE, top, op=MPI.MAX)
+    return finish_motion(solver, top, terms, energy)
+
+
+def local_motion(solver: Solver, depth: float, energy: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Return this rank's part of :func:`motion` (local): ``([speed, max], energy terms)``."""
     idx = flow_index(solver)  # the state is zero elsewhere
     h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
     wet = h > depth
     q2 = hu[wet] ** 2 + hv[wet] ** 2
     terms = np.asarray(solver.lumped_mass)[idx][wet] * q2 / h[wet] if energy else q2[:0]
-    local = np.array([float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0,
-                      float(np.max(terms, initial=0.0))])
-    solver.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+    top = np.array([float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0,
+                    float(np.max(terms, initial=0.0))])
+    return top, terms
+
+
+def finish_motion(solver: Solver, top: np.ndarray, terms: np.ndarray, energy: bool
+                  ) -> tuple[float, float]:
+    """:func:`motion` from the ranks' maxima ``top`` (collective with ``energy``)."""
     if not energy:
-        return float(local[0]), 0.0
-    return float(local[0]), exact_total(terms, float(local[1]), imap.size_global, solver.comm)
+        return float(top[0]), 0.0
+    n = solver.V.dofmap.index_map.size_global
+    return float(top[0]), exact_total(terms, float(top[1]), n, solver.comm)
 
 
 class Runner:
@@ -97,7 +109,7 @@ class Runner:
         checkpoints: Writes checkpoints on schedule, when stopped and when the state goes bad
             (:class:`~fem_runout.checkpoint.Checkpointer`; None: never).
         stop: Returns a signal number once the run was asked to stop (SIGTERM, SIGINT), else
-            0; checked after every step on every rank (one integer reduction).
+            0; checked after every step on every rank (in the step's one reduction).
     """
 
     def __init__(
@@ -116,6 +128,7 @@ class Runner:
         self.info = StepInfo(0.0, 0.0, 0)
         self._rest_since: float | None = None
         self._motion: tuple[float, float] | None = None  # motion() of the state, once a step
+        self._signal = 0  # the stop signal, reduced once a step
         self._peak_energy = 0.0
         self._n_out, self._last_output = 1, 0.0
 
@@ -156,10 +169,8 @@ class Runner:
         return info
 
     def _stopped(self) -> int:
-        """Return the signal that asked every rank to stop, or 0 (collective with ``stop``)."""
-        if self.stop is None:
-            return 0
-        return int(self.solver.comm.allreduce(int(self.stop()), op=_max_op()))
+        """Return the signal that asked every rank to stop, or 0 (reduced in :meth:`_check`)."""
+        return self._signal  # reduced with the step's checks (:meth:`_check`)
 
     def _interrupt(self, signum: int, info: StepInfo) -> None:
         path = self.checkpoint() if self.checkpoints is not None else None
@@ -188,7 +199,7 @@ class Runner:
             solver.advance(dt)
             self._motion = None
             clock = time.perf_counter() - clock
-            problem = solver.health() or self._too_fast()
+            problem = self._check()
             if problem is not None:
                 self._fail(problem, snap, info)
             info = self.info = StepInfo(info.t + dt, dt, info.step + 1, clock)
@@ -214,13 +225,27 @@ class Runner:
             self.progress.close()
         return info
 
-    def _too_fast(self) -> str | None:
-        """Return a message if a node is faster than ``schedule.max_speed`` (collective)."""
-        limit = self.schedule.max_speed
-        if limit is None:
-            return None
-        speed = self._motion_now()[0]
-        if speed > limit:
+    def _check(self) -> str | None:
+        """Check the state's health, the speed limit and the stop signal in one reduction.
+
+        The solver's health flag carries the largest speed (and kinetic energy term) of
+        :func:`motion` and the signal of ``stop`` (collective: one max reduction, plus the
+        energy's sum with ``rest_energy``). Returns a message if the state is bad.
+        """
+        s = self.schedule
+        self._motion, self._signal = None, 0
+        if s.max_speed is None and s.rest_speed is None and self.stop is None:
+            return self.solver.health()
+        energy = s.rest_speed is not None and s.rest_energy is not None
+        top, terms = local_motion(self.solver, s.rest_depth, energy)
+        checks = np.array([top[0], top[1], float(self.stop()) if self.stop is not None else 0.0])
+        problem = self.solver.health(checks)
+        if problem is not None:
+            return problem
+        self._motion = finish_motion(self.solver, checks[:2], terms, energy)
+        self._signal = int(checks[2])
+        speed, limit = self._motion[0], s.max_speed
+        if limit is not None and speed > limit:
             return f"speed {speed:.4g} m/s above numerics.max_speed = {limit:g} m/s"
         return None
 
@@ -257,11 +282,7 @@ class Runner:
         return self.at_rest
 
     def _motion_now(self) -> tuple[float, float]:
-        """:func:`motion` of the state after the step, computed once for both of its uses.
-
-        The speed limit and the rest criterion read the same largest speed (and the energy if
-        the rest criterion uses it): one set of reductions per step (collective).
-        """
+        """:func:`motion` of the state after the step, computed once per step (:meth:`_check`)."""
         if self._motion is None:
             s = self.schedule
             energy = s.rest_speed is not None and s.rest_energy is not None
@@ -279,9 +300,3 @@ class Runner:
         if t + 1.5 * dt > target:  # avoid a sliver step before an output time
             return 0.5 * (target - t)
         return dt
-
-
-def _max_op():
-    from mpi4py import MPI
-
-    return MPI.MAX

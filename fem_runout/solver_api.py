@@ -93,10 +93,14 @@ class Solver(Protocol):
         """
         ...
 
-    def health(self) -> str | None:
+    def health(self, also_max: np.ndarray | None = None) -> str | None:
         """Return a message if the state is bad (NaN, negative depth, collapsed column), else None.
 
-        Collective; the same answer on every rank.
+        Collective; the same answer on every rank. One max reduction in the usual case.
+
+        Args:
+            also_max: Values the caller wants maximised over the ranks in the same message
+                (the runner's speed and stop signal): replaced in place by their maxima.
         """
         ...
 

@@ -2,9 +2,9 @@
 
 Each rank scatters its particles into a box of nodes around them (:func:`mpm.kernels.p2g`,
 rows ``j0 .. j0 + h``, columns ``i0 .. i0 + w``). Only the nodes that some rank touched carry a
-sum, a few thousand on avaKot against 3e4 in the rows the flow spans: the ranks exchange the
-lists of their touched nodes, and the folds are added over the sorted union of those lists
-(one allgather of indices, one allreduce of the union's folds). The folds' sums are exact
+sum, a few thousand on avaKot against 3e4 in the rows the flow spans: the ranks mark their
+touched nodes in a bit mask of the union of their boxes, and the folds are added over the
+marked nodes (one reduction of the mask, one of the union's folds). The folds' sums are exact
 (:mod:`fem_runout.exact_sum`), so the result has the same bits on any number of ranks.
 """
 
@@ -68,12 +68,14 @@ class FoldExchange:
         self._take = np.zeros(0, dtype=np.int64)  # box positions of this rank's touched nodes
         self._put = np.zeros(0, dtype=np.int64)  # their positions in :attr:`nodes`
 
-    def start(self, folds: np.ndarray, box: Box) -> np.ndarray:
+    def start(self, folds: np.ndarray, box: Box, union: Box) -> np.ndarray:
         """Exact sums (n_union, k) of the nodes any rank touched (collective).
 
         Args:
             folds: (box nodes, k, 2) this rank's folds (:func:`mpm.kernels.p2g`).
             box: The box of the folds.
+            union: The smallest box holding every rank's box (:func:`p2g_bounds`): the ranks
+                mark their touched nodes in one bit mask of it (one reduction).
         """
         flat = folds.reshape(len(folds), int(np.prod(folds.shape[1:])))  # (also with none)
         self._take = np.flatnonzero(_touched(flat))
@@ -81,11 +83,15 @@ class FoldExchange:
         if self.comm.size == 1:
             self.nodes, self._put = mine, np.arange(mine.size)
         else:
-            counts = np.array(self.comm.allgather(mine.size), dtype=np.int64)
-            every = np.empty(int(counts.sum()), dtype=np.int64)
-            self.comm.Allgatherv(mine, [every, counts])
-            self.nodes = np.unique(every)
-            self._put = np.searchsorted(self.nodes, mine)
+            pos = (mine // union.nx1 - union.j0) * union.w + mine % union.nx1 - union.i0
+            size = union.h * union.w
+            bits = np.zeros(size, dtype=np.bool_)
+            bits[pos] = True
+            packed = np.packbits(bits)
+            self.comm.Allreduce(MPI.IN_PLACE, packed, op=MPI.BOR)
+            touched = np.flatnonzero(np.unpackbits(packed, count=size))
+            self.nodes = union.nodes(touched)  # increasing: the box is row-major
+            self._put = np.searchsorted(touched, pos)
         return self.sum(folds)
 
     def sum(self, folds: np.ndarray) -> np.ndarray:
@@ -97,18 +103,26 @@ class FoldExchange:
         return out[..., 0] + out[..., 1]
 
 
-def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> np.ndarray:
-    """Global bounds of any P2G contribution per column (collective: one max reduction).
+def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+    """Global bounds of any P2G contribution per column, and the ranks' boxes' union.
 
-    Weights are <= 1 and gradients <= max |dN|. Every single quantity is maximised over the
-    ranks before the maxima are combined: a max over ranks of per-rank sums of maxima would
-    depend on which rank holds which particle, and so would the exact sums' folds.
+    Collective: one max reduction. Weights are <= 1 and gradients <= max |dN|. Every single
+    quantity is maximised over the ranks before the maxima are combined: a max over ranks of
+    per-rank sums of maxima would depend on which rank holds which particle, and so would the
+    exact sums' folds.
 
     Args:
-        local: This rank's maxima from :func:`mpm.forces.transfer_bounds` (the first 11).
+        local: This rank's maxima and box from :func:`mpm.forces.transfer_bounds` (15).
         comm: Communicator.
+
+    Returns:
+        ``(bounds, union)``: the (7,) bounds of ``m, m u, m v``, the two force columns, ``A``
+        and ``V``; and ``-min row, max row, -min column, max column`` of all ranks' nodes
+        (``-inf`` with no particle anywhere), for :meth:`mpm.nodal.NodalGrid.box`.
     """
-    glob = np.nan_to_num(np.array(local[:11]), nan=np.inf, posinf=1e300)
+    glob = np.nan_to_num(np.array(local[:15]), nan=np.inf, posinf=1e300)
+    glob[11:] = local[11:15]  # the box (-inf: no particle) as it is
     comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
-    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob
-    return np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume])
+    m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob[:11]
+    return (np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume]),
+            glob[11:])

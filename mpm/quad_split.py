@@ -25,7 +25,6 @@ import math
 
 import numba
 import numpy as np
-from mpi4py import MPI
 
 from mpm.mesh_clip import polygon_area, polygon_centroid
 from mpm.particles import Particles
@@ -172,17 +171,15 @@ class QuadSplitter(DomainSplitter):
         """(n, 2) half-extents ``|J^{-1} r_s|, |J^{-1} r_t|`` of the domains (cell units)."""
         return _widths(p.quad_columns(), p.cell, self._jac)
 
-    def _any_wide(self, parts: list[Particles]) -> bool:
-        """Whether a domain on any rank exceeds the limit (collective)."""
-        wide = any(bool((self.widths(p) > self._limit).any()) for p in parts)
-        return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
+    def _any_wide_here(self, parts: list[Particles]) -> bool:
+        """Whether a domain on this rank exceeds the limit (local)."""
+        return any(bool((self.widths(p) > self._limit).any()) for p in parts)
 
     def _wide(self, p: Particles, axis: int) -> np.ndarray:
         """Return the indices of the domains too long in direction ``axis`` (0: s, 1: t)."""
         return np.flatnonzero(self.widths(p)[:, axis] > self._limit)
 
-    def _halve(self, p: Particles, idx: np.ndarray, axis: int, new_ids: np.ndarray
-               ) -> Particles:
+    def _halve(self, p: Particles, idx: np.ndarray, axis: int) -> Particles:
         """Cut domains ``idx`` of ``p`` in two along ``axis`` in place; return the others."""
         keep, other, cen_k, cen_o, frac = _cut(p.quad_at(idx), axis)
         volume = p.volume[idx]
@@ -190,7 +187,6 @@ class QuadSplitter(DomainSplitter):
         p.volume[idx] = kept
         child = p.select(idx)
         child.volume = volume - kept
-        child.id = new_ids.astype(np.int64)
         self._place(p, idx, keep, cen_k)
         self._place(child, np.arange(len(child)), other, cen_o)
         return child

@@ -35,6 +35,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.exact_sum import extractors, fold_extractors
+from fem_runout.health import reduce_flag
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
@@ -175,12 +176,16 @@ class MPMSolver:
     def _compute_step_limits(self) -> tuple[float, float]:
         """Compute the limits of :meth:`_step_limits` (collective)."""
         dx = self.grid.min_size
+        # one max reduction: the top speed (from particle_forces) or, with cells of many
+        # sizes, minus each particle's own cell crossing time (negation is exact)
+        first = self._speed if self.grid.structured else -self._crossing_time()
+        both = np.array([first, self._slope], dtype=float)
+        self.comm.Allreduce(MPI.IN_PLACE, both, op=MPI.MAX)
+        top, slope = float(both[0]), float(both[1])
         if self.grid.structured:
-            top = self.comm.allreduce(self._speed, op=MPI.MAX)  # from particle_forces
             dt = COURANT * dx / top if top > 0 else np.inf
-        else:  # cells of many sizes: each particle's own cell crossing time
-            dt = COURANT * self.comm.allreduce(self._crossing_time(), op=MPI.MIN)
-        slope = self.comm.allreduce(self._slope, op=MPI.MAX)
+        else:
+            dt = COURANT * -top
         dt = min(dt, acceleration_limit(dx, self.g, slope))
         mu = self.rheology.viscosity if self.rheology is not None else 0.0
         transport = dt
@@ -271,15 +276,16 @@ class MPMSolver:
         """Owned dofs of the projection's window (the fields are zero outside it)."""
         return self._flow
 
-    def health(self) -> str | None:
-        """Return a message if a particle has NaN or a collapsed column, else None."""
+    def health(self, also_max: np.ndarray | None = None) -> str | None:
+        """Return a message if a particle has NaN or a collapsed column, else None.
+
+        ``also_max`` is maximised over the ranks in the same reduction (in place).
+        """
         local = self._problem or ""
         p = self.particles
         if not local and not all(np.isfinite(getattr(p, k)).all() for k in ("h", "u", "v")):
             local = "the particle state has NaN or infinite values"
-        flag = np.array([1 if local else 0])
-        self.comm.Allreduce(MPI.IN_PLACE, flag, op=MPI.MAX)  # the usual step: one integer
-        if not flag[0]:
+        if not reduce_flag(self.comm, 1 if local else 0, also_max):  # the usual step
             return None
         return next(m for m in self.comm.allgather(local) if m)
 
@@ -401,11 +407,12 @@ class MPMSolver:
         mass = self.rho * p.volume
         speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
         local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
-        ext = fold_extractors(p2g_bounds(local, self.comm), self.splitter.next_id)
+        bounds, union = p2g_bounds(local, self.comm)
+        ext = fold_extractors(bounds, self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
         folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
                     self._box_args, ext)
-        totals = self.exchange.start(folds, box)
+        totals = self.exchange.start(folds, box, self.nodal.box(union))
         self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
         # the nodes this rank's particles reach lie in its box's rows and columns
         self._own = sums.restrict(box.j0 * box.nx1 + box.i0,

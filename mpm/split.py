@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from mpi4py import MPI
 
 from mpm.grid import ParticleGrid
 from mpm.particles import Particles
@@ -105,58 +104,65 @@ class DomainSplitter:
         return self.grid.split_limits(p.cell, self.per_direction)
 
     def split(self, p: Particles) -> Particles:
-        """Split along x, then y, until every half-width is within the limit (collective).
+        """Split along x, then y, x, ... until every half-width is within the limit (collective).
 
         ``p`` is changed in place (the parents' halves); the result holds parents and children
-        (in the order of splitting the joined set axis by axis, built with one copy).
+        (in the order of splitting the joined set axis by axis, built with one copy). One
+        message per pass: a pass halves its particles first, then sends their ids together
+        with whether any domain on the rank is still too wide, so the usual step (x, then y)
+        takes two messages and a step with nothing to split one.
         """
-        parts = [p]
-        while self._any_wide(parts):  # the usual step: one small message, nothing to split
-            parts = self._split_axis(parts, 0)
-            parts = self._split_axis(parts, 1)
+        parts, axis, more = [p], 0, True
+        while more:
+            parts, more = self._split_axis(parts, axis)
+            axis = 1 - axis
         return parts[0] if len(parts) == 1 else Particles.concatenate(parts)
 
-    def _any_wide(self, parts: list[Particles]) -> bool:
-        """Whether a particle on any rank exceeds the limit (collective)."""
-        wide = False
+    def _any_wide_here(self, parts: list[Particles]) -> bool:
+        """Whether a particle on this rank exceeds the limit (local)."""
         for p in parts:
             lim_x, lim_y = self.limits(p)
-            wide = wide or bool((p.lx > lim_x).any() or (p.ly > lim_y).any())
-        return bool(self.grid.comm.allreduce(wide, op=MPI.LOR))
+            if (p.lx > lim_x).any() or (p.ly > lim_y).any():
+                return True
+        return False
 
     def _wide(self, p: Particles, axis: int) -> np.ndarray:
         """Return the indices of the particles wider than the limit along ``axis`` (0: x, 1: y)."""
         return np.flatnonzero(getattr(p, _KEYS[axis]) > self.limits(p)[axis])
 
-    def _split_axis(self, parts: list[Particles], axis: int) -> list[Particles]:
+    def _split_axis(self, parts: list[Particles], axis: int) -> tuple[list[Particles], bool]:
         """Split the particles of ``parts`` (one set, in order) along an axis; append children.
 
-        New ids follow the parents' ids over all ranks (the same on any rank count).
+        New ids follow the parents' ids over all ranks (the same on any rank count). Returns
+        the parts and whether a domain on any rank is still too wide (collective).
         """
         idx = [self._wide(p, axis) for p in parts]
         mine = np.concatenate([p.id[i] for p, i in zip(parts, idx, strict=True)])
-        parents = np.concatenate(self.grid.comm.allgather(mine))
-        if parents.size == 0:
-            return parts
-        new_ids = self.next_id + np.searchsorted(np.sort(parents), mine)
-        self.next_id += int(parents.size)
-        self.count += int(parents.size)
-        children, start = [], 0
-        for p, i in zip(parts, idx, strict=True):
-            if i.size:  # a rank (or part) that splits nothing copies nothing
-                children.append(self._halve(p, i, axis, new_ids[start:start + i.size]))
-            start += i.size
-        return parts + children
+        children = [self._halve(p, i, axis) for p, i in zip(parts, idx, strict=True) if i.size]
+        parts = parts + children  # a rank (or part) that splits nothing copies nothing
+        flag = np.array([-1] if self._any_wide_here(parts) else [], dtype=np.int64)
+        sent = np.concatenate(self.grid.comm.allgather(np.concatenate([mine, flag])))
+        parents = sent[sent >= 0]
+        if parents.size:
+            new_ids = self.next_id + np.searchsorted(np.sort(parents), mine)
+            start = 0
+            for child in children:
+                child.id = new_ids[start:start + len(child)].astype(np.int64)
+                start += len(child)
+            self.next_id += int(parents.size)
+            self.count += int(parents.size)
+        return parts, bool(sent.size > parents.size)
 
-    def _halve(self, p: Particles, idx: np.ndarray, axis: int, new_ids: np.ndarray
-               ) -> Particles:
-        """Halve particles ``idx`` of ``p`` along ``axis`` in place; return the other halves."""
+    def _halve(self, p: Particles, idx: np.ndarray, axis: int) -> Particles:
+        """Halve particles ``idx`` of ``p`` along ``axis`` in place; return the other halves.
+
+        The halves' ids are set by the caller (:meth:`_split_axis`).
+        """
         key = _KEYS[axis]
         half = 0.5 * getattr(p, key)[idx]
         getattr(p, key)[idx] = half  # in place: the solver owns the arrays
         p.volume[idx] *= 0.5
         child = p.select(idx)
-        child.id = new_ids.astype(np.int64)
         self._shift(p, idx, key, -half)
         self._shift(child, slice(None), key, half)
         if p.has_affine:  # APIC: each half moves with the affine velocity at its centre

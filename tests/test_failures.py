@@ -38,7 +38,7 @@ class _FakeSolver:
     def restore(self, snap):
         self.state = snap
 
-    def health(self):
+    def health(self, also_max=None):
         return None if np.isfinite(self.state) else "the state has NaN"
 
 

@@ -11,6 +11,7 @@ from mpm.nodal import NodalGrid, no_faster_than
 from mpm.particles import Particles, seed_particles
 from mpm.projection import GridProjector, tridiagonal_mass_solve
 from mpm.split import DomainSplitter
+from tests.counting_comm import CountingComm
 
 COMM = MPI.COMM_SELF
 
@@ -201,7 +202,8 @@ def test_gimp_weights_average_the_q1_basis_over_the_domain(grid):
     assert np.abs((dS * f(X0, Y0)[..., None]).sum(axis=1) - [0.3, -0.7]).max() < 1e-11
 
 
-def test_split_halves_the_stretched_particles_and_keeps_everything_else(grid):
+def test_split_halves_the_stretched_particles_and_keeps_everything_else(grid, monkeypatch):
+    monkeypatch.setattr(grid, "comm", CountingComm(grid.comm))
     one = np.ones(grid.disc.coords.shape[0])
     p = seed_particles(grid, one, 0 * one, 0 * one, 2)
     n0, v0 = len(p), p.volume.sum()
@@ -215,6 +217,7 @@ def test_split_halves_the_stretched_particles_and_keeps_everything_else(grid):
     lx, ly = p.lx.copy(), p.ly.copy()  # split changes p in place
     q = splitter.split(p)
     assert len(q) == n0 + 3 * 3 + 1 and splitter.count == 10
+    assert grid.comm.calls == {"allgather": 3}  # one message per pass: x, y, x
     assert np.unique(q.id).size == len(q) and np.isin(p.id, q.id).all()
     assert abs(q.volume.sum() - v0) < 1e-14 * v0
     lim_x, lim_y = splitter.limits(q)

@@ -7,8 +7,9 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.config import load_case
-from fem_runout.errors import CaseError
+from fem_runout.errors import CaseError, RunInterrupted
 from fem_runout.runner import Runner, Schedule, max_speed
+from tests.counting_comm import CountingComm
 from tests.fake_solver import fake_solver
 
 
@@ -37,7 +38,9 @@ class _Decaying:
     def restore(self, snap: float) -> None:
         self.t = snap
 
-    def health(self) -> None:
+    def health(self, also_max=None) -> None:
+        if also_max is not None:
+            self.comm.Allreduce(MPI.IN_PLACE, also_max, op=MPI.MAX)
         return None
 
 
@@ -76,3 +79,26 @@ def test_energy_criterion() -> None:
     info = runner.run()
     assert runner.at_rest
     assert info.t == pytest.approx(2.5 + 0.5, abs=1e-9)
+
+
+@pytest.mark.parametrize("energy, per_step", [(None, 1), (1e-2, 2)])
+def test_a_step_is_checked_in_one_message(energy, per_step) -> None:
+    """Health, the speed limit, the rest speed and the stop signal share one max reduction
+    (the solver's health check carries them); the kinetic energy's exact sum adds one."""
+    solver = _Decaying()
+    solver.comm = CountingComm(solver.comm)
+    schedule = Schedule(1.0, 1.0, 10.0, rest_speed=1e-6, rest_duration=5.0, rest_energy=energy,
+                        max_speed=100.0)
+    asked = []
+    info = Runner(solver, schedule, [], stop=lambda: asked.append(1) or 0).run()
+    assert info.step >= 10 and len(asked) == info.step
+    assert solver.comm.total == per_step * info.step
+
+
+def test_a_signal_on_one_check_stops_the_run() -> None:
+    solver = _Decaying()
+    calls = iter([0, 0, 15])
+    with pytest.raises(RunInterrupted) as stopped:
+        Runner(solver, Schedule(5.0, 1.0, 10.0, max_speed=100.0), [],
+               stop=lambda: next(calls, 15)).run()
+    assert stopped.value.signum == 15 and stopped.value.step == 3

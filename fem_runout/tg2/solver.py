@@ -6,6 +6,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.config import Case
+from fem_runout.health import reduce_flag
 from fem_runout.mesh import Discretization, zero_wall_normal
 from fem_runout.physics.friction.base import spend_capacity
 from fem_runout.problem import build_problem
@@ -168,8 +169,11 @@ class TG2Solver:
         nodes = self.transport.active.nodes
         return nodes[nodes < n]
 
-    def health(self) -> str | None:
-        """Check the state (collective): a message if it has NaN or negative depth, else None."""
+    def health(self, also_max: np.ndarray | None = None) -> str | None:
+        """Check the state (collective): a message if it has NaN or negative depth, else None.
+
+        ``also_max`` is maximised over the ranks in the same reduction (in place).
+        """
         own = slice(0, self.disc.n_owned_nodes)
         q = self.transport.state()[own]
         local = 0
@@ -177,7 +181,7 @@ class TG2Solver:
             local = 2
         elif q.shape[0] and q[:, 0].min() < 0.0:
             local = 1
-        worst = self.comm.allreduce(local, op=MPI.MAX)
+        worst = reduce_flag(self.comm, local, also_max)
         if worst == 2:
             return "the state has NaN or infinite values"
         if worst == 1:

@@ -50,7 +50,7 @@ def test_p2g_bounds_do_not_depend_on_which_rank_holds_the_maxima():
         return p2g_bounds(transfer_bounds((i0[k], j0[k], wx[k], dwx[k], wx[k], dwx[k], n, 1, 1.0,
                                            1.0), mass[k], u[k], v[k],
                                           np.ascontiguousarray(forces[:, k]), area[k],
-                                          volume[k]), comm)
+                                          volume[k]), comm)[0]
 
     whole = bounds(np.arange(n), MPI.COMM_SELF)
     assert np.array_equal(bounds(_share(n), WORLD), whole)
@@ -78,8 +78,10 @@ def test_fold_exchange_sums_the_touched_nodes_with_the_bits_of_one_rank():
         folds = p2g_momentum((i0[k], j0[k], wx[k], 0 * wx[k], wy[k], 0 * wy[k], nx, ny, 1.0,
                               1.0), mass[k], u[k], v[k], np.zeros((4, k.size)),
                              np.array([box.j0, box.i0, box.h, box.w]), ext)
+        union = nodal.box(np.array([-j0.min(), np.minimum(j0 + 2, ny).max(), -i0.min(),
+                                    np.minimum(i0 + 2, nx).max()], dtype=float))
         exchange = FoldExchange(comm)
-        sums = exchange.start(folds, box)
+        sums = exchange.start(folds, box, union)
         return exchange.nodes, sums
 
     nodes, sums = run(np.arange(n), MPI.COMM_SELF)
