@@ -68,7 +68,8 @@ class FoldExchange:
         self._take = np.zeros(0, dtype=np.int64)  # box positions of this rank's touched nodes
         self._put = np.zeros(0, dtype=np.int64)  # their positions in :attr:`nodes`
 
-    def start(self, folds: np.ndarray, box: Box, union: Box) -> np.ndarray:
+    def start(self, folds: np.ndarray, box: Box, union: Box,
+              also_sum: np.ndarray | None = None) -> np.ndarray:
         """Exact sums (n_union, k) of the nodes any rank touched (collective).
 
         Args:
@@ -76,6 +77,7 @@ class FoldExchange:
             box: The box of the folds.
             union: The smallest box holding every rank's box (:func:`p2g_bounds`): the ranks
                 mark their touched nodes in one bit mask of it (one reduction).
+            also_sum: Values summed over the ranks in the same message (in place).
         """
         flat = folds.reshape(len(folds), int(np.prod(folds.shape[1:])))  # (also with none)
         self._take = np.flatnonzero(_touched(flat))
@@ -92,16 +94,25 @@ class FoldExchange:
             touched = np.flatnonzero(np.unpackbits(packed, count=size))
             self.nodes = union.nodes(touched)  # increasing: the box is row-major
             self._put = np.searchsorted(touched, pos)
-        return self.sum(folds)
+        return self.sum(folds, also_sum)
 
-    def sum(self, folds: np.ndarray) -> np.ndarray:
-        """Exact sums on :attr:`nodes` of folds of the box of :meth:`start` (collective)."""
-        out = np.zeros((self.nodes.size, *folds.shape[1:]))
+    def sum(self, folds: np.ndarray, also_sum: np.ndarray | None = None) -> np.ndarray:
+        """Exact sums on :attr:`nodes` of folds of the box of :meth:`start` (collective).
+
+        ``also_sum`` (floats) is summed over the ranks in the same message (in place).
+        """
+        width = int(np.prod(folds.shape[1:]))
+        extra = 0 if also_sum is None else also_sum.size
+        buf = np.zeros(self.nodes.size * width + extra)
+        out = buf[:self.nodes.size * width].reshape(self.nodes.size, *folds.shape[1:])
         out[self._put] = folds[self._take]
         if self.comm.size > 1:
-            self.comm.Allreduce(MPI.IN_PLACE, out, op=MPI.SUM)
+            if extra:
+                buf[-extra:] = also_sum.ravel()
+            self.comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.SUM)
+            if extra:
+                also_sum[...] = buf[-extra:].reshape(also_sum.shape)
         return out[..., 0] + out[..., 1]
-
 
 def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
     """Global bounds of any P2G contribution per column, and the ranks' boxes' union.

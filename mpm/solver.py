@@ -130,6 +130,7 @@ class MPMSolver:
         splitter = DomainSplitter if grid.structured else QuadSplitter
         self.splitter = splitter(grid, per_direction, n_ids, thin_depth)
         self.outflow_volume = 0.0
+        self._left = 0.0  # outflow of this rank not yet summed over the ranks
         self.sent = 0
         self._snap_store: dict[str, np.ndarray] | None = None  # reused by :meth:`snapshot`
         self._since_balance = 0  # steps since the particles were balanced over the ranks
@@ -247,6 +248,7 @@ class MPMSolver:
     def restore(self, snap: tuple[Particles, float]) -> None:
         """Restore a :meth:`snapshot`."""
         self.particles, self.outflow_volume = snap[0].copy(), snap[1]
+        self._left = 0.0
         self._problem = None
         self._refresh()
 
@@ -391,8 +393,7 @@ class MPMSolver:
         p.cell, p.xi, p.eta, out, swap = grid.displace(p.cell, p.xi, p.eta, dx, dy)
         if swap is not None and swap.any():  # the new cells' axes are the old ones swapped
             p.lx[swap], p.ly[swap] = p.ly[swap], p.lx[swap]
-        left = float(p.volume[out].sum())
-        self.outflow_volume += self.comm.allreduce(left, op=MPI.SUM)
+        self._left += float(p.volume[out].sum())  # summed over the ranks in _refresh
         if out.any():
             self.particles = p.select(~out)
 
@@ -412,7 +413,10 @@ class MPMSolver:
         box = self._box = self.nodal.box(local[11:])
         folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
                     self._box_args, ext)
-        totals = self.exchange.start(folds, box, self.nodal.box(union))
+        left = np.array([self._left])  # the volume _move removed, in the folds' message
+        totals = self.exchange.start(folds, box, self.nodal.box(union), left)
+        self.outflow_volume += float(left[0])
+        self._left = 0.0
         self._sums = sums = self.nodal.with_mass(self.exchange.nodes, totals)
         # the nodes this rank's particles reach lie in its box's rows and columns
         self._own = sums.restrict(box.j0 * box.nx1 + box.i0,

@@ -79,6 +79,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from fem_runout.physics.friction.integrate_kernel import integrate_nodes
 from fem_runout.physics.friction.newton import solve_direction
 from fem_runout.physics.friction.registry import Parameter, ParameterError
 from fem_runout.physics.slope import BedFrame
@@ -335,7 +336,9 @@ class FrictionLaw:
 
         Two :meth:`implicit_update` stages with ``θ = γ_s dt`` (Alexander's SDIRK); the second
         stage starts from ``max(0, 1 + (1-γ_s)/γ_s (|Q_1|/|q| - 1)) q``: exact for the yield
-        term, second order for the drag, continuous in the data.
+        term, second order for the drag, continuous in the data. Compiled as one pass over
+        the nodes (:mod:`fem_runout.physics.friction.integrate_kernel`), with the same bits
+        as the two stages (tested).
 
         Args:
             h: Depth [m] (frozen over the step), shape (n,).
@@ -347,6 +350,14 @@ class FrictionLaw:
         Returns:
             ``(qx, qy)`` after ``dt``, parallel to the start's momentum and not longer.
         """
+        h = np.asarray(h, dtype=float)
+        k = self.drag_coefficient(np.where(h > self.dry_tol, h, 1.0), bed)
+        return integrate_nodes(h, qx, qy, dt, SDIRK_GAMMA, self.mu, self.gravity, self.dry_tol,
+                               k, bed, NEWTON_RTOL, NEWTON_MAX_ITER)
+
+    def integrate_in_stages(self, h: Array, qx: Array, qy: Array, dt: float,
+                            bed: BedFrame | None = None) -> tuple[Array, Array]:
+        """:meth:`integrate` as its two :meth:`implicit_update` stages (the reference)."""
         theta = SDIRK_GAMMA * dt
         ax, ay = self.implicit_update(h, qx, qy, qx, qy, theta, bed)
         norm = np.hypot(qx, qy)

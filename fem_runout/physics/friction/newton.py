@@ -15,7 +15,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["solve_direction"]
+__all__ = ["newton_direction", "solve_direction"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -31,33 +31,39 @@ def _minimum(a, b):
     return a if a <= b else b
 
 
+@numba.njit(cache=True, inline="always")
+def newton_direction(h, star, guess, n_i, moving, gc, gt, k, theta, mu, rtol, max_iter):
+    """One node of :func:`solve_direction`: ``(x, 1 if Newton did not converge else 0)``."""
+    ti = theta * gc * mu * h
+    rhs = star - ti * n_i if moving else 0.0
+    active = moving and n_i != 0.0
+    mag_n = abs(n_i) if active else 1.0
+    a = theta * gt * k / (h * h * mag_n) if active else 0.0
+    sign, r_abs = _sign(rhs), abs(rhs)
+    # upper bounds on the root |x|: |R| (no drag) and sqrt(|R|/a) (drag only)
+    bound = _minimum(r_abs, math.sqrt(r_abs / (a if a > 0.0 else 1.0))
+                     + (r_abs if a == 0.0 else 0.0))
+    g_abs = abs(guess)
+    use = _sign(guess) == sign and g_abs <= bound and g_abs + a * (g_abs * g_abs) >= r_abs
+    x = g_abs if use else bound
+    scale = r_abs + ti * abs(n_i)
+    done = False
+    for _ in range(max_iter):
+        res = x + a * x * x - r_abs
+        if not (abs(res) > rtol * scale):
+            done = True
+            break
+        x = x - res / (1.0 + 2.0 * a * x)
+    return (sign * x if active else 0.0), (0 if done else 1)
+
+
 @numba.njit(cache=True)
 def _solve(h, star, guess, n_i, moving, gc, gt, k, theta, mu, rtol, max_iter, out):
     failed = 0
     for i in range(h.size):
-        ti = theta * gc[i] * mu * h[i]
-        rhs = star[i] - ti * n_i[i] if moving[i] else 0.0
-        active = moving[i] and n_i[i] != 0.0
-        mag_n = abs(n_i[i]) if active else 1.0
-        a = theta * gt[i] * k[i] / (h[i] * h[i] * mag_n) if active else 0.0
-        sign, r_abs = _sign(rhs), abs(rhs)
-        # upper bounds on the root |x|: |R| (no drag) and sqrt(|R|/a) (drag only)
-        bound = _minimum(r_abs, math.sqrt(r_abs / (a if a > 0.0 else 1.0))
-                         + (r_abs if a == 0.0 else 0.0))
-        g_abs = abs(guess[i])
-        use = _sign(guess[i]) == sign and g_abs <= bound and g_abs + a * (g_abs * g_abs) >= r_abs
-        x = g_abs if use else bound
-        scale = r_abs + ti * abs(n_i[i])
-        done = False
-        for _ in range(max_iter):
-            res = x + a * x * x - r_abs
-            if not (abs(res) > rtol * scale):
-                done = True
-                break
-            x = x - res / (1.0 + 2.0 * a * x)
-        if not done:
-            failed += 1
-        out[i] = sign * x if active else 0.0
+        out[i], f = newton_direction(h[i], star[i], guess[i], n_i[i], moving[i], gc[i], gt[i],
+                                     k[i], theta, mu, rtol, max_iter)
+        failed += f
     return failed
 
 
