@@ -40,7 +40,6 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
-from fem_runout.stepping import acceleration_limit
 from mpm.exchange import FoldExchange, p2g_bounds
 from mpm.fields import FieldWriter
 from mpm.grid import ParticleGrid
@@ -58,17 +57,13 @@ from mpm.nodal import (
 from mpm.particles import FLOAT_FIELDS, Particles
 from mpm.quad_split import QuadSplitter
 from mpm.split import DomainSplitter
+from mpm.step_limits import COURANT, limits_from, local_limits
 
 __all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
 
-#: Fraction of the cell crossing time ``Δx / max(|v_p| + sqrt(g h_p))`` given as the stable step.
-COURANT = 0.5
 #: A particle column is at most this many times the depth the particle volumes make on the
 #: grid where it is (:meth:`MPMSolver.update_depth_and_stress`).
 DEPTH_CAP = 3.0
-#: Fraction of the explicit viscous limit ``ρ Δx² / (8 μ)`` of the Newtonian part.
-VISCOUS = 0.5
-
 
 class MPMSolver:
     """Depth-averaged MPM with the solver interface of :mod:`fem_runout.solver_api`.
@@ -175,32 +170,20 @@ class MPMSolver:
         return self._limits
 
     def _compute_step_limits(self) -> tuple[float, float]:
-        """Compute the limits of :meth:`_step_limits` (collective)."""
-        dx = self.grid.min_size
-        # one max reduction: the top speed (from particle_forces) or, with cells of many
-        # sizes, minus each particle's own cell crossing time (negation is exact)
-        first = self._speed if self.grid.structured else -self._crossing_time()
-        both = np.array([first, self._slope], dtype=float)
+        """Compute the limits of :meth:`_step_limits` (collective: one max reduction)."""
+        both = self._local_limits()
         self.comm.Allreduce(MPI.IN_PLACE, both, op=MPI.MAX)
-        top, slope = float(both[0]), float(both[1])
-        if self.grid.structured:
-            dt = COURANT * dx / top if top > 0 else np.inf
-        else:
-            dt = COURANT * -top
-        dt = min(dt, acceleration_limit(dx, self.g, slope))
-        mu = self.rheology.viscosity if self.rheology is not None else 0.0
-        transport = dt
-        if mu > 0.0:  # the yield stress is bounded (|σ_Y| <= τ_Y): only μ limits the step
-            dt = min(dt, VISCOUS * self.rho * dx * dx / (8.0 * mu))
-        return dt, transport
+        return self._limits_from(both)
 
-    def _crossing_time(self) -> float:
-        """``min_p s_p / (|v_p| + sqrt(max(G_p, g) h_p))``, ``s_p`` the size around its cell."""
-        p = self.particles
-        speed = np.sqrt(p.u * p.u + p.v * p.v) + np.sqrt(np.maximum(self._gp, self.g) * p.h)
-        size = self.grid.local_size[p.cell]
-        ok = speed > 0.0
-        return float(np.min(size[ok] / speed[ok], initial=np.inf))
+    def _local_limits(self) -> np.ndarray:
+        """Return this rank's :func:`mpm.step_limits.local_limits` (local)."""
+        return local_limits(self.particles, self.grid, self._speed, self._slope, self._gp,
+                            self.g)
+
+    def _limits_from(self, both: np.ndarray) -> tuple[float, float]:
+        """:meth:`_step_limits` from the ranks' maxima of :meth:`_local_limits`."""
+        mu = self.rheology.viscosity if self.rheology is not None else 0.0
+        return limits_from(both, self.grid, self.g, self.rho, mu)
 
     def _pic_scale(self) -> float:
         """``Δt_stable / Δt_transport`` (collective), see :meth:`_step_limits`."""
@@ -281,13 +264,22 @@ class MPMSolver:
     def health(self, also_max: np.ndarray | None = None) -> str | None:
         """Return a message if a particle has NaN or a collapsed column, else None.
 
-        ``also_max`` is maximised over the ranks in the same reduction (in place).
+        ``also_max`` is maximised over the ranks in the same reduction (in place), and so
+        are the next step's limits (:meth:`_step_limits` of this state): one reduction for
+        the step's check and the next step's size.
         """
         local = self._problem or ""
         p = self.particles
         if not local and not all(np.isfinite(getattr(p, k)).all() for k in ("h", "u", "v")):
             local = "the particle state has NaN or infinite values"
-        if not reduce_flag(self.comm, 1 if local else 0, also_max):  # the usual step
+        with np.errstate(all="ignore"):  # (of a bad state: not used)
+            limits = self._local_limits()
+        extra = limits if also_max is None else np.concatenate([limits, np.ravel(also_max)])
+        flag = reduce_flag(self.comm, 1 if local else 0, extra)
+        if also_max is not None:
+            also_max[...] = extra[2:].reshape(np.shape(also_max))
+        if not flag:  # the usual step
+            self._limits = self._limits_from(extra[:2])
             return None
         return next(m for m in self.comm.allgather(local) if m)
 

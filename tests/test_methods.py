@@ -11,6 +11,7 @@ from mpi4py import MPI
 from fem_runout.api import build_solver
 from fem_runout.methods import METHODS, get, method_names
 from fem_runout.solver_api import ParticleSolver, Solver
+from tests.counting_comm import CountingComm
 from tests.tg2_helpers import case
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,6 +49,23 @@ def test_a_solver_follows_the_protocol(method):
         got = list(inspect.signature(getattr(solver, name)).parameters)
         assert got == want, f"{type(solver).__name__}.{name}{got} != protocol {want}"
     assert solver.n_particles is None or solver.n_particles > 0
+
+
+@pytest.mark.parametrize("method", method_names())
+def test_the_next_step_size_rides_with_the_health_check(method):
+    """After a step, ``health`` reduces the next ``stable_dt`` together with its flag and the
+    caller's values: ``stable_dt`` then sends nothing and has the bits it computes alone."""
+    solver, twin = _solver(method), _solver(method)
+    dt = 0.5 * solver.stable_dt()
+    solver.advance(dt)
+    twin.advance(dt)
+    extra = np.array([3.0, -1.0])
+    assert solver.health(extra) is None and extra.tolist() == [3.0, -1.0]
+    counting = CountingComm(COMM)
+    solver.comm = counting
+    if hasattr(solver, "disc"):
+        solver.disc.comm = counting
+    assert solver.stable_dt() == twin.stable_dt() and counting.total == 0
 
 
 @pytest.mark.parametrize("method", method_names())

@@ -46,6 +46,7 @@ class TG2Solver:
         self.lumped_mass = disc.lumped_mass
         t = transport
         self.fields = {"h": t.h, "hu": t.hu, "hv": t.hv, "z": t.z}
+        self._limits: tuple[float, float] | None = None  # stable_dt of the state, if known
 
     @property
     def n_particles(self) -> None:
@@ -62,7 +63,10 @@ class TG2Solver:
 
         Friction and rheology are implicit or stabilised and do not limit the step.
         """
-        dt, slope_dt = self.transport.stable_dt(with_slope=True)
+        if self._limits is not None:  # reduced with the last health check, same state
+            (dt, slope_dt), self._limits = self._limits, None
+        else:
+            dt, slope_dt = self.transport.stable_dt(with_slope=True)
         dt = dt if self.reaction is None else 2.0 * dt
         return min(dt, slope_dt)
 
@@ -73,6 +77,7 @@ class TG2Solver:
         (the flow is exactly zero elsewhere); the rheology's stress couples the nodes and
         works on all of them.
         """
+        self._limits = None
         if self.reaction is None:
             self.transport.step(dt)
             return
@@ -134,6 +139,7 @@ class TG2Solver:
         """Restore a :meth:`snapshot`."""
         self.transport.set_state(snap[0])
         self.transport.outflow_volume = snap[1]
+        self._limits = None
 
     def save_state(self) -> dict:
         """Return ``(h, hu, hv)`` in the global node order and the outflow (collective)."""
@@ -154,6 +160,7 @@ class TG2Solver:
         local = scatter_nodal(self.V, state["nodes"])
         t.set_state(np.stack([local["h"], local["hu"], local["hv"]], axis=1))
         t.outflow_volume = float(state["outflow"])
+        self._limits = None
         if t.active_set and "active_seed" in local:
             t.active.rebuild(local["active_seed"])  # the uninterrupted run's very set
 
@@ -172,7 +179,9 @@ class TG2Solver:
     def health(self, also_max: np.ndarray | None = None) -> str | None:
         """Check the state (collective): a message if it has NaN or negative depth, else None.
 
-        ``also_max`` is maximised over the ranks in the same reduction (in place).
+        ``also_max`` is maximised over the ranks in the same reduction (in place), and so is
+        the next :meth:`stable_dt` (the transport's low-order pass of this state, kept for
+        the next step): one reduction for the step's check and the next step's size.
         """
         own = slice(0, self.disc.n_owned_nodes)
         q = self.transport.state()[own]
@@ -181,7 +190,14 @@ class TG2Solver:
             local = 2
         elif q.shape[0] and q[:, 0].min() < 0.0:
             local = 1
-        worst = reduce_flag(self.comm, local, also_max)
+        with np.errstate(all="ignore"):  # a bad state still takes part in the pass's exchange
+            limits = self.transport.local_limits(with_slope=True)
+        extra = limits if also_max is None else np.concatenate([limits, np.ravel(also_max)])
+        worst = reduce_flag(self.comm, local, extra)
+        if also_max is not None:
+            also_max[...] = extra[2:].reshape(np.shape(also_max))
+        if worst == 0:
+            self._limits = self.transport.limits_from(extra[:2])
         if worst == 2:
             return "the state has NaN or infinite values"
         if worst == 1:

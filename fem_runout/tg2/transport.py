@@ -166,6 +166,17 @@ class Transport:
         Returns:
             The CFL limit, or ``(CFL limit, acceleration limit)``.
         """
+        local = self.local_limits(with_slope)
+        self.disc.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        return self.limits_from(local, with_slope)
+
+    def local_limits(self, with_slope: bool = True) -> np.ndarray:
+        """Return this rank's part of :meth:`stable_dt`, to be maximised over the ranks.
+
+        Returns ``[-dt, S]`` (minus the CFL limit, so that a max reduction gives the minimum
+        exactly; the weighted steepest slope, 0 without ``with_slope``). Collective: the
+        low-order pass sums over the ranks' shared nodes.
+        """
         a = self.active
         self._low_order_pass()
         cap = self._sums[:, 3].copy()
@@ -178,12 +189,15 @@ class Transport:
         own = slice(0, a.n_owned_nodes)
         c, m = cap[own], self._arrays()["mass"][own]
         ratio = m[c > 0.0] / c[c > 0.0]
-        local = np.array([float(ratio.min()) if ratio.size else np.inf,
-                          -self._local_slope() if with_slope else 0.0])
-        self.disc.comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MIN)
+        return np.array([-float(ratio.min()) if ratio.size else -np.inf,
+                         self._local_slope() if with_slope else 0.0])
+
+    def limits_from(self, top: np.ndarray, with_slope: bool = True
+                    ) -> float | tuple[float, float]:
+        """:meth:`stable_dt` from the ranks' maxima of :meth:`local_limits`."""
         if not with_slope:
-            return float(local[0])
-        return float(local[0]), acceleration_limit(self.disc.min_cell_size, self.g, -local[1])
+            return -float(top[0])
+        return -float(top[0]), acceleration_limit(self.disc.min_cell_size, self.g, float(top[1]))
 
     def _local_slope(self) -> float:
         """Steepest bed slope at this rank's owned nodes, weighted by ``min(1, h/δ)``.
