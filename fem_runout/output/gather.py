@@ -9,7 +9,10 @@ from mpi4py import MPI  # before dolfinx
 import numpy as np
 from dolfinx import fem
 
-__all__ = ["gather_nodal", "global_max", "global_min", "global_sum", "sorted_node_order"]
+__all__ = [
+    "exact_global_sum", "gather_nodal", "global_max", "global_min", "global_sum",
+    "sorted_node_order",
+]
 
 # Coordinates are rounded to this fraction of the domain extent before sorting, so that
 # round-off cannot swap two nodes of the same grid row.
@@ -27,6 +30,24 @@ def global_sum(comm: MPI.Comm, value: float) -> float:
         The global sum, the same on every rank.
     """
     return float(comm.allreduce(float(value), op=MPI.SUM))
+
+
+def exact_global_sum(comm: MPI.Comm, terms: np.ndarray) -> float:
+    """Sum of every rank's terms with the same bits on any number of ranks (collective).
+
+    :func:`fem_runout.exact_sum.exact_total` with the largest term and the number of terms
+    reduced first (three reductions: for totals reported once, not for the step).
+
+    Args:
+        comm: The communicator.
+        terms: This rank's terms (e.g. lumped mass times depth on the owned nodes).
+    """
+    from fem_runout.exact_sum import exact_total
+
+    terms = np.asarray(terms, dtype=np.float64)
+    bound = global_max(comm, float(np.max(np.abs(terms), initial=0.0)))
+    count = int(comm.allreduce(int(terms.size), op=MPI.SUM))
+    return exact_total(terms, bound, count, comm)
 
 
 def global_max(comm: MPI.Comm, value: float) -> float:

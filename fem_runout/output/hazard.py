@@ -22,7 +22,7 @@ import numpy as np
 
 from fem_runout.callbacks import flow_index
 from fem_runout.output.diagnostics import nodal_speed
-from fem_runout.output.gather import gather_nodal, global_sum
+from fem_runout.output.gather import exact_global_sum, gather_nodal
 from fem_runout.output.sampling import bed_cosine_nodes, ghosted, sample_q1
 from fem_runout.terrain.dem import sample_grid
 
@@ -264,7 +264,7 @@ class HazardMaps:
         self._track = {"h0": h, "z": z, "peak_depth": h.copy(), "peak_speed": np.zeros(n),
                        "peak_pressure": np.zeros(n),
                        "arrival_time": np.where(h > self.threshold, info.t, np.nan)}
-        self.summary["released_volume"] = global_sum(solver.comm, solver.lumped_mass[:n] @ h)
+        self.summary["released_volume"] = exact_global_sum(solver.comm, solver.lumped_mass[:n] * h)
         self.step(solver, info)
 
     def step(self, solver: Solver, info: StepInfo) -> None:
@@ -287,7 +287,7 @@ class HazardMaps:
         """Gather (collective), then write the rasters, pictures and summary on rank 0."""
         h = self._owned(solver)[0]
         n = h.size
-        deposit = global_sum(solver.comm, solver.lumped_mass[:n] @ h)
+        deposit = exact_global_sum(solver.comm, solver.lumped_mass[:n] * h)
         outflow = float(solver.outflow_volume)
         released = self.summary["released_volume"]
         self.summary.update(deposit_volume=deposit, outflow_volume=outflow,
