@@ -237,7 +237,8 @@ class Runner:
         if s.max_speed is None and s.rest_speed is None and self.stop is None:
             return self.solver.health()
         energy = s.rest_speed is not None and s.rest_energy is not None
-        top, terms = local_motion(self.solver, s.rest_depth, energy)
+        with np.errstate(all="ignore"):  # a bad state is reported by health, not numpy
+            top, terms = local_motion(self.solver, s.rest_depth, energy)
         checks = np.array([top[0], top[1], float(self.stop()) if self.stop is not None else 0.0])
         problem = self.solver.health(checks)
         if problem is not None:
