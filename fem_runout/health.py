@@ -15,22 +15,25 @@ from fem_runout.callbacks import flow_index
 __all__ = ["locate", "reduce_flag"]
 
 
-def reduce_flag(comm, flag: int, also_max: np.ndarray | None = None) -> int:
+def reduce_flag(comm, flag: int, *also_max: np.ndarray | None) -> int:
     """Largest of the ranks' health flags (collective: one max reduction).
 
     Args:
         comm: The communicator.
         flag: This rank's flag (0: good; the solvers' codes otherwise).
-        also_max: Values maximised over the ranks in the same message (in place): the
-            runner's largest speed and stop signal ride along with every step's check.
+        also_max: Float arrays maximised over the ranks in the same message, each in place
+            (None skipped): the solver's step limits, the runner's largest speed and stop
+            signal ride along with every step's check.
     """
     from mpi4py import MPI
 
-    extra = np.zeros(0) if also_max is None else np.asarray(also_max, dtype=float).ravel()
-    values = np.concatenate([[float(flag)], extra])
+    arrays = [a for a in also_max if a is not None]
+    values = np.concatenate([[float(flag)], *(np.ravel(a) for a in arrays)])
     comm.Allreduce(MPI.IN_PLACE, values, op=MPI.MAX)
-    if also_max is not None:
-        also_max[...] = values[1:].reshape(np.shape(also_max))
+    start = 1
+    for a in arrays:
+        a[...] = values[start:start + a.size].reshape(a.shape)
+        start += a.size
     return int(values[0])
 
 

@@ -274,12 +274,8 @@ class MPMSolver:
             local = "the particle state has NaN or infinite values"
         with np.errstate(all="ignore"):  # (of a bad state: not used)
             limits = self._local_limits()
-        extra = limits if also_max is None else np.concatenate([limits, np.ravel(also_max)])
-        flag = reduce_flag(self.comm, 1 if local else 0, extra)
-        if also_max is not None:
-            also_max[...] = extra[2:].reshape(np.shape(also_max))
-        if not flag:  # the usual step
-            self._limits = self._limits_from(extra[:2])
+        if not reduce_flag(self.comm, 1 if local else 0, limits, also_max):  # the usual step
+            self._limits = self._limits_from(limits)
             return None
         return next(m for m in self.comm.allgather(local) if m)
 

@@ -192,12 +192,9 @@ class TG2Solver:
             local = 1
         with np.errstate(all="ignore"):  # a bad state still takes part in the pass's exchange
             limits = self.transport.local_limits(with_slope=True)
-        extra = limits if also_max is None else np.concatenate([limits, np.ravel(also_max)])
-        worst = reduce_flag(self.comm, local, extra)
-        if also_max is not None:
-            also_max[...] = extra[2:].reshape(np.shape(also_max))
+        worst = reduce_flag(self.comm, local, limits, also_max)
         if worst == 0:
-            self._limits = self.transport.limits_from(extra[:2])
+            self._limits = self.transport.limits_from(limits)
         if worst == 2:
             return "the state has NaN or infinite values"
         if worst == 1:
