@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fem_runout.physics.recovery import corrected_hessian
+
 __all__ = ["BedFrame", "SlopeGeometry", "nodal_gradient", "slope_geometry"]
 
 
@@ -123,7 +125,9 @@ def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False)
     """Build the :class:`SlopeGeometry` of a Q1 bed on a discretization (collective).
 
     The gradient is the lumped projection of ``∇Z``; the Hessian that of the gradient's
-    gradient, symmetrised (both exact for a plane, and the same bits on any partition).
+    gradient, symmetrised (both exact for a plane, and the same bits on any partition). On a
+    gmsh mesh the Hessian is then corrected to be exact for a quadratic bed, as it is on the
+    grid (:mod:`fem_runout.physics.recovery`).
 
     Args:
         disc: A :class:`fem_runout.mesh.Discretization`.
@@ -135,7 +139,12 @@ def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False)
         return nodal_gradient(disc.cell_sum, disc.C, disc.cell_nodes, disc.lumped_mass,
                               values, disc.n_owned_cells)
 
+    def hessian_of(gradient: np.ndarray) -> np.ndarray:
+        gx = grad_of(np.ascontiguousarray(gradient[:, 0]))
+        gy = grad_of(np.ascontiguousarray(gradient[:, 1]))
+        return np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
+
     grad = grad_of(np.asarray(z, dtype=float))
-    gx, gy = grad_of(np.ascontiguousarray(grad[:, 0])), grad_of(np.ascontiguousarray(grad[:, 1]))
-    hess = np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
+    # on a gmsh mesh, corrected to be exact for quadratic beds (recovery.py)
+    hess = hessian_of(grad) if disc.structured else corrected_hessian(disc, grad, hessian_of)
     return SlopeGeometry(grad, hess, gravity, curvature)

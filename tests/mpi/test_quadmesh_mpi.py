@@ -5,7 +5,8 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.api import run
-from tests.quad_helpers import on_mesh
+from fem_runout.physics.slope import slope_geometry
+from tests.quad_helpers import distorted_rectangle, on_mesh
 from tests.tg2_helpers import assert_same_on_ranks, case
 
 WORLD = MPI.COMM_WORLD
@@ -95,3 +96,21 @@ def test_particles_cross_ranks_on_an_unstructured_partition():
     moves = WORLD.allreduce(counter.moves)
     if WORLD.size > 1:  # rebalanced every REBALANCE_EVERY steps: several times in 3 s
         assert moves >= 4 and sent >= 20
+
+
+def test_bed_curvature_on_a_jittered_mesh_has_the_bits_of_one_rank():
+    """The recovered Hessian (fem_runout.physics.recovery) does not depend on the partition."""
+    sides = {s: "open" for s in ("left", "right", "bottom", "top")}
+    parts = []
+    for comm in (WORLD, MPI.COMM_SELF):
+        disc = distorted_rectangle(comm, (0.0, 100.0, 0.0, 80.0), (20, 16), sides, 0.25, 3)
+        x, y = disc.coords[:, 0], disc.coords[:, 1]
+        z = 0.002 * x * x + 0.003 * x * y - 0.001 * y * y + np.sin(x / 9.0) * np.cos(y / 7.0)
+        geometry = slope_geometry(disc, z, 9.81, True)
+        order = np.lexsort((y, x))
+        parts.append((disc.coords[order, :2], geometry.hess[order], geometry.grad[order]))
+    (xw, hw, gw), (xs, hs, gs) = parts
+    at = np.searchsorted(xs[:, 0] * 1e6 + xs[:, 1], xw[:, 0] * 1e6 + xw[:, 1])
+    np.testing.assert_array_equal(xs[at], xw)
+    np.testing.assert_array_equal(hs[at], hw)  # the same bits
+    np.testing.assert_array_equal(gs[at], gw)
