@@ -4,7 +4,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.physics.recovery import monomial_gradients
-from fem_runout.physics.slope import nodal_gradient, slope_geometry
+from fem_runout.physics.slope import lumped_gradient, lumped_hessian, slope_geometry
 from tests.quad_helpers import distorted_rectangle
 
 EXTENT = (0.0, 100.0, 0.0, 80.0)
@@ -21,12 +21,7 @@ def _bed(disc) -> np.ndarray:
 
 def _plain_hessian(disc, z: np.ndarray) -> np.ndarray:
     """The lumped projection applied twice, uncorrected (the grid's Hessian)."""
-    def grad_of(values):
-        return nodal_gradient(disc.cell_sum, disc.C, disc.cell_nodes, disc.lumped_mass,
-                              np.ascontiguousarray(values), disc.n_owned_cells)
-    g = grad_of(z)
-    gx, gy = grad_of(g[:, 0]), grad_of(g[:, 1])
-    return np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
+    return lumped_hessian(disc, lumped_gradient(disc, z))
 
 
 def test_curvature_of_a_quadratic_bed_is_exact_on_a_jittered_mesh():

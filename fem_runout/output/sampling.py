@@ -19,10 +19,9 @@ _INSIDE = 1e-10  # tolerance on the reference coordinates (pixels on an edge)
 
 def bed_cosine_nodes(disc, z: np.ndarray) -> np.ndarray:
     """``cosθ = 1/sqrt(1 + |∇Z|²)`` at the local nodes (lumped projection of ``∇Z``)."""
-    from fem_runout.physics.slope import nodal_gradient
+    from fem_runout.physics.slope import lumped_gradient
 
-    grad = nodal_gradient(disc.cell_sum, disc.C, disc.cell_nodes, disc.lumped_mass,
-                          np.ascontiguousarray(z, dtype=float), disc.n_owned_cells)
+    grad = lumped_gradient(disc, z)
     return 1.0 / np.sqrt(1.0 + grad[:, 0] ** 2 + grad[:, 1] ** 2)
 
 

@@ -38,7 +38,8 @@ __all__ = ["MAX_PASSES", "corrected_hessian", "monomial_gradients"]
 
 #: Most correction passes (each two lumped projections, once at setup).
 MAX_PASSES = 200
-#: The passes stop when no entry changes by more than this times the largest ``|H|``.
+#: The passes stop when no entry changes by more than this times the scale ``max(|H|,
+#: |G| / shortest edge)`` [1/m] (a plane's Hessian is round-off: its slope sets the scale).
 TOLERANCE = 1e-13
 
 
@@ -64,7 +65,9 @@ def corrected_hessian(disc, grad: np.ndarray,
     Args:
         disc: A :class:`fem_runout.mesh.Discretization`.
         grad: (n_local, 2) the lumped gradient ``G`` of the bed.
-        hessian_of: The symmetrised lumped Hessian of a nodal gradient field, (n_local, 3).
+        hessian_of: The symmetrised lumped Hessian of a nodal gradient field, (n_local, 3)
+            (:func:`fem_runout.physics.slope.lumped_hessian`; passed in, as slope.py
+            imports this module).
 
     Returns:
         (n_local, 3) ``(H_xx, H_xy, H_yy)``; ``hessian_of(grad)`` if the passes diverge
@@ -72,7 +75,6 @@ def corrected_hessian(disc, grad: np.ndarray,
     """
     e = monomial_gradients(disc)
     first = hess = hessian_of(grad)
-    # [1/m]: the Hessian's size, or the slope's over a cell (a plane's Hessian is round-off)
     local = [np.abs(hess).max(initial=0.0),
              np.abs(grad).max(initial=0.0) / max(disc.min_cell_size, 1e-300)]
     scale = disc.comm.allreduce(float(max(local)), op=MPI.MAX)

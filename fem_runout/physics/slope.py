@@ -36,7 +36,8 @@ import numpy as np
 
 from fem_runout.physics.recovery import corrected_hessian
 
-__all__ = ["BedFrame", "SlopeGeometry", "nodal_gradient", "slope_geometry"]
+__all__ = ["BedFrame", "SlopeGeometry", "lumped_gradient", "lumped_hessian", "nodal_gradient",
+           "slope_geometry"]
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,21 @@ def nodal_gradient(cell_sum, C: np.ndarray, cell_nodes: np.ndarray, lumped_mass:
     return cell_sum(np.ascontiguousarray(per)) / lumped_mass[:, None]
 
 
+def lumped_gradient(disc, values: np.ndarray) -> np.ndarray:
+    """:func:`nodal_gradient` of a nodal field on a discretization, (n_local, 2) (collective)."""
+    return nodal_gradient(disc.cell_sum, disc.C, disc.cell_nodes, disc.lumped_mass,
+                          np.ascontiguousarray(values, dtype=float), disc.n_owned_cells)
+
+
+def lumped_hessian(disc, gradient: np.ndarray) -> np.ndarray:
+    """``(H_xx, H_xy, H_yy)``: the lumped gradient of a nodal gradient, symmetrised (n_local, 3).
+
+    Exact for a quadratic bed on a uniform grid away from the sides (collective).
+    """
+    gx, gy = lumped_gradient(disc, gradient[:, 0]), lumped_gradient(disc, gradient[:, 1])
+    return np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
+
+
 def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False) -> SlopeGeometry:
     """Build the :class:`SlopeGeometry` of a Q1 bed on a discretization (collective).
 
@@ -135,16 +151,7 @@ def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False)
         gravity: ``g`` [m/s²].
         curvature: Centrifugal term in the friction's normal stress.
     """
-    def grad_of(values: np.ndarray) -> np.ndarray:
-        return nodal_gradient(disc.cell_sum, disc.C, disc.cell_nodes, disc.lumped_mass,
-                              values, disc.n_owned_cells)
-
-    def hessian_of(gradient: np.ndarray) -> np.ndarray:
-        gx = grad_of(np.ascontiguousarray(gradient[:, 0]))
-        gy = grad_of(np.ascontiguousarray(gradient[:, 1]))
-        return np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
-
-    grad = grad_of(np.asarray(z, dtype=float))
-    # on a gmsh mesh, corrected to be exact for quadratic beds (recovery.py)
-    hess = hessian_of(grad) if disc.structured else corrected_hessian(disc, grad, hessian_of)
+    grad = lumped_gradient(disc, z)
+    hess = (lumped_hessian(disc, grad) if disc.structured
+            else corrected_hessian(disc, grad, lambda g: lumped_hessian(disc, g)))
     return SlopeGeometry(grad, hess, gravity, curvature)
