@@ -16,7 +16,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["Box", "FoldExchange", "p2g_bounds"]
+__all__ = ["Box", "FoldExchange", "p2g_bounds", "p2g_bounds_of"]
 
 
 @dataclass(frozen=True)
@@ -131,9 +131,25 @@ def p2g_bounds(local: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarra
         and ``V``; and ``-min row, max row, -min column, max column`` of all ranks' nodes
         (``-inf`` with no particle anywhere), for :meth:`mpm.nodal.NodalGrid.box`.
     """
-    glob = np.nan_to_num(np.array(local[:15]), nan=np.inf, posinf=1e300)
-    glob[11:] = local[11:15]  # the box (-inf: no particle) as it is
+    glob = _finite(local)
     comm.Allreduce(MPI.IN_PLACE, glob, op=MPI.MAX)
+    return _combine(glob)
+
+
+def p2g_bounds_of(every: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`p2g_bounds` from every rank's ``local`` (gathered with another message; no MPI)."""
+    return _combine(np.max([_finite(local) for local in every], axis=0))
+
+
+def _finite(local: np.ndarray) -> np.ndarray:
+    """Return the maxima with NaN, inf as the largest floats; the box (-inf: none) as it is."""
+    glob = np.nan_to_num(np.array(local[:15]), nan=np.inf, posinf=1e300)
+    glob[11:] = local[11:15]
+    return glob
+
+
+def _combine(glob: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(bounds, union)`` of :func:`p2g_bounds` from the maxima over the ranks."""
     m, mu, mv, bx, by, sxx, syy, sxy, grad, area, volume = glob[:11]
     return (np.array([m, mu, mv, bx + (sxx + sxy) * grad, by + (sxy + syy) * grad, area, volume]),
             glob[11:])

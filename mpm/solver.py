@@ -40,7 +40,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
-from mpm.exchange import FoldExchange, p2g_bounds
+from mpm.exchange import FoldExchange, p2g_bounds, p2g_bounds_of
 from mpm.fields import FieldWriter
 from mpm.grid import ParticleGrid
 from mpm.mesh_grid import MeshParticleGrid
@@ -56,7 +56,7 @@ from mpm.nodal import (
 )
 from mpm.particles import FLOAT_FIELDS, Particles
 from mpm.quad_split import QuadSplitter
-from mpm.split import DomainSplitter
+from mpm.split import DomainSplitter, PendingIds
 from mpm.step_limits import COURANT, limits_from, local_limits
 
 __all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
@@ -130,6 +130,7 @@ class MPMSolver:
         self._snap_store: dict[str, np.ndarray] | None = None  # reused by :meth:`snapshot`
         self._since_balance = 0  # steps since the particles were balanced over the ranks
         self._problem: str | None = None
+        self._pending: PendingIds | None = None  # split children whose ids wait for a message
         self.walls = [s for s in self.nodal.sides if s.kind == "wall"]
         self.open_sides = [s for s in self.nodal.sides if s.kind == "open"]
         self._refresh()
@@ -214,14 +215,22 @@ class MPMSolver:
         self.update_depth_and_stress(dt, grad, self._grid_depth())
         self.splitter.stretch(p, dt, grad)
         self._move(dt * p.u, dt * p.v)
-        self.particles = self.splitter.split(self.particles)
+        self.particles, self._pending = self.splitter.split_pair(self.particles)
         self._since_balance += 1
         self.sent = 0
         if self._since_balance >= REBALANCE_EVERY:  # any rank may hold any particle
             self._since_balance = 0
+            self._settle_split()  # the ids travel with the particles
             self.particles, self.sent = migrate(
                 self.grid, self.particles, balanced_destinations(self.grid, self.particles))
         self._refresh()
+
+    def _settle_split(self) -> None:
+        """Settle the pending children's ids with a message of their own (collective)."""
+        pending, self._pending = self._pending, None
+        if pending is not None and self.splitter.settle(
+                self.particles, pending, self.comm.allgather(pending.payload)):
+            self.particles = self.splitter.split(self.particles)
 
     def snapshot(self) -> tuple[Particles, float]:
         """Copy of the state, valid until the next snapshot (its memory is reused)."""
@@ -233,6 +242,7 @@ class MPMSolver:
         self.particles, self.outflow_volume = snap[0].copy(), snap[1]
         self._left = 0.0
         self._problem = None
+        self._pending = None
         self._refresh()
 
     def save_state(self) -> dict:
@@ -255,6 +265,7 @@ class MPMSolver:
         self.splitter.next_id = int(state["next_id"])
         self.splitter.count = int(state["split_count"])
         self._problem = None
+        self._pending = None
         self._refresh()
 
     def flow_dofs(self) -> np.ndarray:
@@ -323,18 +334,40 @@ class MPMSolver:
         particles beside them, and a column at rest in a deposit kept thickening (an avaKot
         remnant grew from 4 cm to 7e4 m and collapsed the step).
         """
-        p, b, sums = self.particles, self._basis, self._own
+        p, sums = self.particles, self._own
         mass = self.rho * p.volume
         su, sv = p.transfer_speeds(self.grid.dx, self.grid.dy, self.apic)
-        ext = extractors([_amax(mass * su), _amax(mass * sv)], self.splitter.next_id, self.comm)
-        mom = self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
-                                             self._box_args, ext))[sums.index]
+        top = np.array([_amax(mass * su), _amax(mass * sv)])
+        mom = self._momentum_sums(mass, top)[sums.index]
         mass = sums.g[:, 0]
         mx, my = mom[:, 0] / mass, mom[:, 1] / mass
         self._zero_walls(mx, my)
         if self.friction is not None:
             mx, my = no_faster_than(mx, my, vx[sums.act], vy[sums.act])
         return self._put("mvx", sums, mx), self._put("mvy", sums, my)
+
+    def _momentum_sums(self, mass: np.ndarray, top: np.ndarray) -> np.ndarray:
+        """Exact nodal sums of the MUSL momentum (collective: one message as a rule).
+
+        The exact sums' extractors need a bound of every ``|m_p s_p|`` over the ranks
+        (``top`` here, this rank's maxima). Twice the step's start bound (:attr:`_musl_bound`,
+        known on every rank from :func:`mpm.exchange.p2g_bounds`) holds unless a particle more
+        than doubled its largest ``m |v|`` within the step: each rank checks its own maxima,
+        and the flag rides in the sums' message; only if some rank exceeds it (the release's
+        first step, from rest) are the sums redone with the maxima reduced over the ranks.
+        Either way every rank uses the same extractors, so the sums have the same bits on any
+        rank count.
+        """
+        p, b = self.particles, self._basis
+        ext = fold_extractors(self._musl_bound, self.splitter.next_id)
+        flag = np.array([0.0 if (top <= self._musl_bound).all() else 1.0])
+        mom = self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
+                                                    self._box_args, ext), flag)
+        if flag[0] == 0.0:
+            return mom
+        ext = extractors(top, self.splitter.next_id, self.comm)
+        return self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
+                                                     self._box_args, ext))
 
     def _grid_depth(self) -> np.ndarray | None:
         """Return the depth the particle volumes make on the grid at the particles, or None.
@@ -388,15 +421,9 @@ class MPMSolver:
     def _refresh(self) -> None:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
         self._limits: tuple[float, float] | None = None
-        p, g = self.particles, self.grid
-        self._basis = b = g.particle_basis(p)
-        forces, self._gp, self._slope, self._speed = self.k.particle_forces(
-            b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
-            p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
-        mass = self.rho * p.volume
-        speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
-        local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
-        bounds, union = p2g_bounds(local, self.comm)
+        mass, forces, local, bounds, union = self._particle_terms()
+        p, b = self.particles, self._basis
+        self._musl_bound = 2.0 * bounds[1:3]  # m |v| may grow within the step (_momentum_sums)
         ext = fold_extractors(bounds, self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
         folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
@@ -415,6 +442,33 @@ class MPMSolver:
         self._flow = self.writer.owned_dofs(index)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
             self.writer.write(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
+
+    def _particle_terms(self) -> tuple[np.ndarray, ...]:
+        """Basis, forces and P2G bounds of the particles (collective: one message as a rule).
+
+        The ids of the last split's children (:attr:`_pending`) are settled with the bounds'
+        message (:meth:`mpm.split.DomainSplitter.settle`); if a domain is still too wide the
+        particles are split again and the terms recomputed.
+
+        Returns:
+            ``(mass, forces, local, bounds, union)``: :func:`mpm.exchange.p2g_bounds`'s.
+        """
+        while True:
+            p, g = self.particles, self.grid
+            self._basis = b = g.particle_basis(p)
+            forces, self._gp, self._slope, self._speed = self.k.particle_forces(
+                b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
+                p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
+            mass = self.rho * p.volume
+            speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
+            local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
+            pending, self._pending = self._pending, None
+            if pending is None:
+                return mass, forces, local, *p2g_bounds(local, self.comm)
+            sent = self.comm.allgather((pending.payload, local))
+            if not self.splitter.settle(p, pending, [s[0] for s in sent]):
+                return mass, forces, local, *p2g_bounds_of([s[1] for s in sent])
+            self.particles = self.splitter.split(p)  # rare: a domain more than twice too wide
 
     def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
         """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""

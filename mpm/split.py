@@ -33,13 +33,15 @@ parents' ids over all ranks, so ids do not depend on the rank count.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
 from mpm.grid import ParticleGrid
 from mpm.particles import Particles
 
-__all__ = ["MAX_ASPECT", "DomainSplitter"]
+__all__ = ["MAX_ASPECT", "DomainSplitter", "PendingIds"]
 
 #: Largest aspect ratio ``l_x/l_y`` (or ``l_y/l_x``) of a particle domain.
 MAX_ASPECT = 4.0
@@ -67,6 +69,30 @@ def _stretch(lx, ly, h, dt, grad, cell, max_aspect, thin_depth, limit_x, limit_y
         if h[p] < thin_depth:
             out_x[p], out_y[p] = min(out_x[p], limit_x[p]), min(out_y[p], limit_y[p])
     return out_x, out_y
+
+
+@dataclass(frozen=True)
+class PendingIds:
+    """The children of one :meth:`DomainSplitter.split_pair`, waiting for their ids.
+
+    Attributes:
+        start: Where the children start in the joined particles (x-children, then y).
+        x_parents: This rank's x-parents' ids, in the order of the x-children.
+        y_known: The y-parents that existed before the pair (their ids, in order).
+        y_pending: The y-parents among the x-children (positions among them).
+        wide: Whether a domain on this rank is still too wide.
+    """
+
+    start: int
+    x_parents: np.ndarray
+    y_known: np.ndarray
+    y_pending: np.ndarray
+    wide: bool
+
+    @property
+    def payload(self) -> tuple:
+        """What the other ranks need (:meth:`DomainSplitter.settle`'s ``sent``)."""
+        return self.x_parents, self.y_known, self.x_parents[self.y_pending], self.wide
 
 
 class DomainSplitter:
@@ -107,56 +133,83 @@ class DomainSplitter:
         """Split along x, then y, x, ... until every half-width is within the limit (collective).
 
         ``p`` is changed in place (the parents' halves); the result holds parents and children
-        (in the order of splitting the joined set axis by axis, built with one copy). One
-        message per pass: a pass halves its particles first, then sends their ids together
-        with whether any domain on the rank is still too wide, so the usual step (x, then y)
-        takes two messages and a step with nothing to split one.
+        (in the order of splitting the joined set axis by axis). The passes go in pairs
+        (:meth:`split_pair`, x then y) with one message per pair (:meth:`settle`), so the
+        usual step (x, then y, or nothing to split) takes one message.
         """
-        parts, axis, more = [p], 0, True
+        more = True
         while more:
-            parts, more = self._split_axis(parts, axis)
-            axis = 1 - axis
-        return parts[0] if len(parts) == 1 else Particles.concatenate(parts)
+            p, pending = self.split_pair(p)
+            more = self.settle(p, pending, self.grid.comm.allgather(pending.payload))
+        return p
+
+    def split_pair(self, p: Particles) -> tuple[Particles, PendingIds]:
+        """Split ``p`` along x, then y (local); the children's ids wait for :meth:`settle`.
+
+        Returns the parents and children joined (one copy) and what :meth:`settle` needs.
+        The caller may send :attr:`PendingIds.payload` with a message of its own (the solver
+        sends it with the P2G bounds): every rank must call :meth:`settle` with every rank's
+        payload before the ids or :attr:`next_id` are used.
+        """
+        idx = self._wide(p, 0)
+        x_parents = p.id[idx]
+        parts = [p] + ([self._halve(p, idx, 0)] if idx.size else [])
+        idx = [self._wide(q, 1) for q in parts]
+        y_known = p.id[idx[0]]
+        y_pending = idx[1] if len(parts) > 1 else np.zeros(0, dtype=np.int64)
+        parts += [self._halve(q, i, 1) for q, i in zip(parts, idx, strict=True) if i.size]
+        pending = PendingIds(len(p), x_parents, y_known, y_pending,
+                             self._any_wide_here(parts))
+        return (p if len(parts) == 1 else Particles.concatenate(parts)), pending
+
+    def settle(self, p: Particles, pending: PendingIds, sent: list[tuple]) -> bool:
+        """Give the children of :meth:`split_pair` their ids (in ``p``, in place; no MPI).
+
+        The ids are those of two passes with one message each: a pass's children take
+        ``next_id`` plus their parents' rank among that pass's parents over all ranks, so
+        they do not depend on the rank count.
+
+        Args:
+            p: The particles :meth:`split_pair` returned.
+            pending: Its :class:`PendingIds`.
+            sent: Every rank's :attr:`PendingIds.payload`, in rank order.
+
+        Returns:
+            Whether a domain on some rank is still too wide (split again).
+        """
+        all_x = np.sort(np.concatenate([s[0] for s in sent]))
+        x_first = self.next_id
+        y_first = x_first + all_x.size
+        x_ids = x_first + np.searchsorted(all_x, pending.x_parents)
+        pending_y = [x_first + np.searchsorted(all_x, s[2]) for s in sent]
+        all_y = np.sort(np.concatenate([s[1] for s in sent] + pending_y))
+        mine_y = np.concatenate([pending.y_known, x_ids[pending.y_pending]])
+        y_ids = y_first + np.searchsorted(all_y, mine_y)
+        start = pending.start
+        p.id[start:start + x_ids.size] = x_ids
+        p.id[start + x_ids.size:start + x_ids.size + y_ids.size] = y_ids
+        self.next_id = y_first + all_y.size
+        self.count += int(all_x.size + all_y.size)
+        return any(s[3] for s in sent)
 
     def _any_wide_here(self, parts: list[Particles]) -> bool:
         """Whether a particle on this rank exceeds the limit (local)."""
-        for p in parts:
-            lim_x, lim_y = self.limits(p)
-            if (p.lx > lim_x).any() or (p.ly > lim_y).any():
-                return True
-        return False
+        lim_x, lim_y = self._scalar_limits()
+        return any(bool((p.lx > lim_x).any() or (p.ly > lim_y).any()) for p in parts)
+
+    def _scalar_limits(self) -> tuple[float, float]:
+        """Return the structured grid's split limits ``min(Δ/n, Δ/2)`` (one for every cell)."""
+        g, n = self.grid, self.per_direction
+        return min(g.dx / n, 0.5 * g.dx), min(g.dy / n, 0.5 * g.dy)
 
     def _wide(self, p: Particles, axis: int) -> np.ndarray:
         """Return the indices of the particles wider than the limit along ``axis`` (0: x, 1: y)."""
-        return np.flatnonzero(getattr(p, _KEYS[axis]) > self.limits(p)[axis])
-
-    def _split_axis(self, parts: list[Particles], axis: int) -> tuple[list[Particles], bool]:
-        """Split the particles of ``parts`` (one set, in order) along an axis; append children.
-
-        New ids follow the parents' ids over all ranks (the same on any rank count). Returns
-        the parts and whether a domain on any rank is still too wide (collective).
-        """
-        idx = [self._wide(p, axis) for p in parts]
-        mine = np.concatenate([p.id[i] for p, i in zip(parts, idx, strict=True)])
-        children = [self._halve(p, i, axis) for p, i in zip(parts, idx, strict=True) if i.size]
-        parts = parts + children  # a rank (or part) that splits nothing copies nothing
-        flag = np.array([-1] if self._any_wide_here(parts) else [], dtype=np.int64)
-        sent = np.concatenate(self.grid.comm.allgather(np.concatenate([mine, flag])))
-        parents = sent[sent >= 0]
-        if parents.size:
-            new_ids = self.next_id + np.searchsorted(np.sort(parents), mine)
-            start = 0
-            for child in children:
-                child.id = new_ids[start:start + len(child)].astype(np.int64)
-                start += len(child)
-            self.next_id += int(parents.size)
-            self.count += int(parents.size)
-        return parts, bool(sent.size > parents.size)
+        return np.flatnonzero(getattr(p, _KEYS[axis]) > self._scalar_limits()[axis])
 
     def _halve(self, p: Particles, idx: np.ndarray, axis: int) -> Particles:
         """Halve particles ``idx`` of ``p`` along ``axis`` in place; return the other halves.
 
-        The halves' ids are set by the caller (:meth:`_split_axis`).
+        The halves' ids are set by :meth:`settle`.
         """
         key = _KEYS[axis]
         half = 0.5 * getattr(p, key)[idx]
@@ -182,3 +235,4 @@ class DomainSplitter:
             at = np.asarray(idx) if not isinstance(idx, slice) else np.arange(len(p))
             at = at[swap]
             p.lx[at], p.ly[at] = p.ly[at].copy(), p.lx[at].copy()
+

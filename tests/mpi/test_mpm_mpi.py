@@ -5,6 +5,7 @@ from mpi4py import MPI
 
 from fem_runout.api import build_solver, run
 from fem_runout.runner import Runner, Schedule
+from tests.mpm_messages import count_messages, momentum_sums_both_ways
 from tests.tg2_helpers import assert_same_on_ranks, case, lake_errors
 
 WORLD = MPI.COMM_WORLD
@@ -85,3 +86,18 @@ def test_slope_form_with_curvature_same_on_one_and_two_ranks():
                   "output.every=1.0", "model.form=slope", "model.curvature=true",
                   "terrain.elevation=100 - x/3 + 0.002*(x - 60)**2 + 0.5*sin(y/4)",
                   "material.friction={law: voellmy, mu: 0.2, xi: 500}"))
+
+
+def test_a_step_sends_one_gather_and_three_sums_on_any_rank_count():
+    """The split's ids ride with the P2G bounds; the MUSL bound needs no message of its own."""
+    counting, solver = count_messages(WORLD, steps=3)
+    sums = 3 if WORLD.size > 1 else 0
+    assert counting.calls == {"allgather": 3, "Allreduce": 3 * (sums + 1)}
+    assert solver.splitter.count > 0
+
+
+def test_the_known_musl_bound_gives_the_sums_of_the_reduced_bound_in_parallel():
+    _, solver = count_messages(WORLD, steps=1)
+    quick, full = momentum_sums_both_ways(solver)
+    scale = WORLD.allreduce(float(np.abs(full).max(initial=0.0)), op=MPI.MAX)
+    assert scale > 0.0 and np.abs(quick - full).max(initial=0.0) <= 1e-14 * scale
