@@ -34,13 +34,14 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fem_runout.exact_sum import extractors, fold_extractors
+from fem_runout.exact_sum import fold_extractors
 from fem_runout.health import reduce_flag
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
-from mpm.exchange import FoldExchange, p2g_bounds, p2g_bounds_of
+from mpm.collective import CollectiveSteps
+from mpm.exchange import FoldExchange
 from mpm.fields import FieldWriter
 from mpm.grid import ParticleGrid
 from mpm.mesh_grid import MeshParticleGrid
@@ -54,7 +55,7 @@ from mpm.nodal import (
     open_side_push,
     zero_wall_velocity,
 )
-from mpm.particles import FLOAT_FIELDS, Particles
+from mpm.particles import Particles
 from mpm.quad_split import QuadSplitter
 from mpm.split import DomainSplitter, PendingIds
 from mpm.step_limits import COURANT, limits_from, local_limits
@@ -65,7 +66,7 @@ __all__ = ["COURANT", "DEPTH_CAP", "MPMSolver"]
 #: grid where it is (:meth:`MPMSolver.update_depth_and_stress`).
 DEPTH_CAP = 3.0
 
-class MPMSolver:
+class MPMSolver(CollectiveSteps):
     """Depth-averaged MPM with the solver interface of :mod:`fem_runout.solver_api`.
 
     Args:
@@ -225,13 +226,6 @@ class MPMSolver:
                 self.grid, self.particles, balanced_destinations(self.grid, self.particles))
         self._refresh()
 
-    def _settle_split(self) -> None:
-        """Settle the pending children's ids with a message of their own (collective)."""
-        pending, self._pending = self._pending, None
-        if pending is not None and self.splitter.settle(
-                self.particles, pending, self.comm.allgather(pending.payload)):
-            self.particles = self.splitter.split(self.particles)
-
     def snapshot(self) -> tuple[Particles, float]:
         """Copy of the state, valid until the next snapshot (its memory is reused)."""
         snap, self._snap_store = self.particles.copy_into(self._snap_store)
@@ -241,29 +235,6 @@ class MPMSolver:
         """Restore a :meth:`snapshot`."""
         self.particles, self.outflow_volume = snap[0].copy(), snap[1]
         self._left = 0.0
-        self._problem = None
-        self._pending = None
-        self._refresh()
-
-    def save_state(self) -> dict:
-        """Return every particle (all attributes, sorted by id) and counters (collective)."""
-        rows = self.comm.gather(self.particles.pack(), root=0)
-        if rows is not None:
-            rows = np.concatenate(rows)
-            rows = rows[np.argsort(rows[:, -1].copy().view(np.int64), kind="stable")]
-        return {"particles": rows, "outflow": float(self.outflow_volume),
-                "next_id": int(self.splitter.next_id), "split_count": int(self.splitter.count)}
-
-    def load_state(self, state: dict) -> None:
-        """Continue from :meth:`save_state` (collective; any rank count)."""
-        width = len(FLOAT_FIELDS) + 2
-        rows = state["particles"] if self.comm.rank == 0 else np.zeros((0, width))
-        p = Particles.unpack(np.asarray(rows, dtype=np.float64), self.apic,
-                             self.particles.has_quad)
-        self.particles, _ = migrate(self.grid, p, balanced_destinations(self.grid, p))
-        self.outflow_volume = float(state["outflow"])
-        self.splitter.next_id = int(state["next_id"])
-        self.splitter.count = int(state["split_count"])
         self._problem = None
         self._pending = None
         self._refresh()
@@ -346,29 +317,6 @@ class MPMSolver:
             mx, my = no_faster_than(mx, my, vx[sums.act], vy[sums.act])
         return self._put("mvx", sums, mx), self._put("mvy", sums, my)
 
-    def _momentum_sums(self, mass: np.ndarray, top: np.ndarray) -> np.ndarray:
-        """Exact nodal sums of the MUSL momentum (collective: one message as a rule).
-
-        The exact sums' extractors need a bound of every ``|m_p s_p|`` over the ranks
-        (``top`` here, this rank's maxima). Twice the step's start bound (:attr:`_musl_bound`,
-        known on every rank from :func:`mpm.exchange.p2g_bounds`) holds unless a particle more
-        than doubled its largest ``m |v|`` within the step: each rank checks its own maxima,
-        and the flag rides in the sums' message; only if some rank exceeds it (the release's
-        first step, from rest) are the sums redone with the maxima reduced over the ranks.
-        Either way every rank uses the same extractors, so the sums have the same bits on any
-        rank count.
-        """
-        p, b = self.particles, self._basis
-        ext = fold_extractors(self._musl_bound, self.splitter.next_id)
-        flag = np.array([0.0 if (top <= self._musl_bound).all() else 1.0])
-        mom = self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
-                                                    self._box_args, ext), flag)
-        if flag[0] == 0.0:
-            return mom
-        ext = extractors(top, self.splitter.next_id, self.comm)
-        return self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
-                                                     self._box_args, ext))
-
     def _grid_depth(self) -> np.ndarray | None:
         """Return the depth the particle volumes make on the grid at the particles, or None.
 
@@ -437,38 +385,14 @@ class MPMSolver:
         self._own = sums.restrict(box.j0 * box.nx1 + box.i0,
                                   (box.j0 + box.h - 1) * box.nx1 + box.i0 + box.w)
         index, values = self.projector.project_nodes(sums.act, sums.g[:, 6])
+        # the outputs read only the nonzero nodes: the projection's support reaches 24 nodes
+        # beyond the flow, where half its values are exactly zero (same fields, same bits)
+        index, values = _nonzero(index, values)
         self._h = h = self.buffers.put("h", index, values)
         self.writer.write("h", index, values)
         self._flow = self.writer.owned_dofs(index)
         for name, col in (("hu", 1), ("hv", 2)):  # h times the mass-averaged particle velocity
             self.writer.write(name, sums.act, h[sums.act] * sums.g[:, col] / sums.g[:, 0])
-
-    def _particle_terms(self) -> tuple[np.ndarray, ...]:
-        """Basis, forces and P2G bounds of the particles (collective: one message as a rule).
-
-        The ids of the last split's children (:attr:`_pending`) are settled with the bounds'
-        message (:meth:`mpm.split.DomainSplitter.settle`); if a domain is still too wide the
-        particles are split again and the terms recomputed.
-
-        Returns:
-            ``(mass, forces, local, bounds, union)``: :func:`mpm.exchange.p2g_bounds`'s.
-        """
-        while True:
-            p, g = self.particles, self.grid
-            self._basis = b = g.particle_basis(p)
-            forces, self._gp, self._slope, self._speed = self.k.particle_forces(
-                b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
-                p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
-            mass = self.rho * p.volume
-            speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
-            local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
-            pending, self._pending = self._pending, None
-            if pending is None:
-                return mass, forces, local, *p2g_bounds(local, self.comm)
-            sent = self.comm.allgather((pending.payload, local))
-            if not self.splitter.settle(p, pending, [s[0] for s in sent]):
-                return mass, forces, local, *p2g_bounds_of([s[1] for s in sent])
-            self.particles = self.splitter.split(p)  # rare: a domain more than twice too wide
 
     def _put(self, name: str, sums: GridSums, values: np.ndarray | float) -> np.ndarray:
         """Global node array ``name`` with ``values`` at ``sums.act``, zero elsewhere."""
@@ -478,3 +402,9 @@ class MPMSolver:
 def _amax(values: np.ndarray) -> float:
     """Largest absolute value (0 for none)."""
     return float(np.max(np.abs(values), initial=0.0))
+
+
+def _nonzero(index: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the entries of ``(index, values)`` whose value is not zero."""
+    keep = np.flatnonzero(values)
+    return index[keep], values[keep]
