@@ -79,6 +79,9 @@ def main(args: argparse.Namespace) -> int:
             ref = ref or summary
     table = "\n".join(lines)
     print(table)
+    if not args.doc.exists():  # the table is printed; nothing to splice it into
+        print(f"{args.doc} does not exist: table not written")
+        return 0
     text = args.doc.read_text()
     a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
     args.doc.write_text(text[:a] + "\n" + table + "\n" + text[b:])

@@ -186,7 +186,7 @@ the synchronized limiter TG2-PC's energy-line error grew under refinement (6 %, 
   error is summed over the gathered nodes in gather order): TG2-PC sums cell contributions
   into one slot per cell corner (`fem_runout/cellsum.py`) and splits the corrector's facet
   terms by orientation, DAMPM sums particle contributions in exact two-fold pre-rounded
-  sums (`mpm/exact_sum.py`), and node coordinates follow the grid formula. Before, a
+  sums (`fem_runout/exact_sum.py`), and node coordinates follow the grid formula. Before, a
   last-bit difference of a sum grew into 1.6e-3 on Thacker's bowl after two periods (the
   moving shoreline amplifies round-off: 1e-14 → 2e-4 at 80×80) and to 1.1e-7 for DAMPM
   (Stoker 100:1); before issue 13 TG2-PC's element-based Zalesak factors and the switches
