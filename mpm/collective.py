@@ -92,12 +92,13 @@ class CollectiveSteps:
         rank count.
         """
         p, b = self.particles, self._basis
-        ext = fold_extractors(self._musl_bound, self.splitter.next_id)
+
+        def folds(ext: np.ndarray) -> np.ndarray:
+            return self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(), self._box_args, ext)
+
         flag = np.array([0.0 if (top <= self._musl_bound).all() else 1.0])
-        mom = self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
-                                                    self._box_args, ext), flag)
+        mom = self.exchange.sum(folds(fold_extractors(self._musl_bound, self.splitter.next_id)),
+                                flag)
         if flag[0] == 0.0:
             return mom
-        ext = extractors(top, self.splitter.next_id, self.comm)
-        return self.exchange.sum(self.k.p2g_momentum(b.arrays, mass, p.u, p.v, p.affine(),
-                                                     self._box_args, ext))
+        return self.exchange.sum(folds(extractors(top, self.splitter.next_id, self.comm)))

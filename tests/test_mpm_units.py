@@ -387,22 +387,3 @@ def test_projection_on_the_flow_support_is_the_window_projection_to_round_off():
     # volume: exact but for the clamp of round-off negatives (below 1e-13 of the lumped peak)
     clamp = 1e-13 * (1.0 / proj.lumped_mass[100 * nx1 + 100]) * proj.lumped_mass[index].sum()
     assert abs(np.sum(proj.lumped_mass[index] * h) - 1.0) <= clamp
-
-
-def test_a_split_pair_settled_later_gives_the_ids_of_the_split(grid):
-    """The solver sends a pair's ids with the P2G bounds (``split_pair`` now, ``settle`` with
-    the next message): the particles and ids are those of ``split``."""
-    one = np.ones(grid.disc.coords.shape[0])
-    base = seed_particles(grid, one, 0 * one, 0 * one, 2)
-    x0, y0 = base.positions(grid)
-    middle = np.flatnonzero((np.abs(x0 - 106.0) < 2.0) & (np.abs(y0 - 0.5) < 2.0))
-    base.lx[middle[:3]] *= 4.5  # split twice along x: a second pair
-    base.ly[middle[2:6]] *= 2.2
-    first = int(base.id.max()) + 1
-    a, b = DomainSplitter(grid, 2, first), DomainSplitter(grid, 2, first)
-    want = a.split(base.copy())
-    got, pending = b.split_pair(base.copy())
-    assert b.settle(got, pending, [pending.payload])  # still too wide: split again
-    got = b.split(got)
-    assert np.array_equal(got.pack(), want.pack())
-    assert (b.next_id, b.count) == (a.next_id, a.count) == (first + 16, 16)  # 3 + 3 + 7 + 3
