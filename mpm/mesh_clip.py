@@ -22,10 +22,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mpm.mesh_locate import inverse_map, map_point, newton
+from mpm.mesh_locate import inverse_map, map_point, newton, tangents
 
-__all__ = ["MAX_VISITED", "cell_polygon", "clip", "convex_parts", "crossed_sides", "polygon_area",
-           "polygon_centroid", "quad_points", "seed_quads"]
+__all__ = ["MAX_VISITED", "cell_polygon", "clip", "convex_parts", "crossed_sides", "inverse_anchor",
+           "invert_near", "polygon_area", "polygon_centroid", "quad_points", "seed_quads"]
 
 #: Most cells a domain's search visits (the cells it overlaps and their neighbours).
 MAX_VISITED = 48
@@ -164,13 +164,15 @@ def clip(px, py, n, cx, cy, nc, ox, oy):
 
 
 @numba.njit(cache=True, inline="always")
-def quad_points(geo, origin, k0, m, px, py, n, qa, qb, qw):
+def quad_points(geo, origin, k0, m, px, py, n, qa, qb, qw, near_a, near_b):
     """Write the quadrature points of the polygon ``(px, py)[:n]`` (inside cell ``m``).
 
     Fans the polygon into triangles from its first vertex; seven points per triangle
     (Dunavant's rule of degree 5). Writes their
     reference coordinates in cell ``m`` to ``qa, qb`` and weights to ``qw``; returns the point
-    count (``k0``: the cell the polygon's coordinates are relative to).
+    count (``k0``: the cell the polygon's coordinates are relative to). The points are
+    inverted from a known point of the cell (:func:`invert_near`): ``(near_a, near_b)`` if
+    ``m == k0`` (the particle's own reference coordinates), else the cell's centre.
     """
     ox, oy = origin[m, 0] - origin[k0, 0], origin[m, 1] - origin[k0, 1]
     count = 0
@@ -181,19 +183,56 @@ def quad_points(geo, origin, k0, m, px, py, n, qa, qb, qw):
             continue
         for g in range(_RULE.shape[0]):
             l0, l1, l2 = _RULE[g, 0], _RULE[g, 1], _RULE[g, 2]
-            x, y = l0 * x0 + l1 * x1 + l2 * x2, l0 * y0 + l1 * y1 + l2 * y2
-            if count == 0:
-                a, b, _ = inverse_map(geo, m, x - ox, y - oy)
-            else:  # Newton from the last point: two steps instead of four
-                lx, ly = map_point(geo, m, qa[count - 1], qb[count - 1])
-                a, b, ok = newton(geo, m, x - ox - lx, y - oy - ly, qa[count - 1],
-                                  qb[count - 1])
-                if not ok:
-                    a, b, _ = inverse_map(geo, m, x - ox, y - oy)
-            qa[count], qb[count] = min(max(a, 0.0), 1.0), min(max(b, 0.0), 1.0)
+            qa[count] = l0 * x0 + l1 * x1 + l2 * x2 - ox
+            qb[count] = l0 * y0 + l1 * y1 + l2 * y2 - oy
             qw[count] = area * _RULE[g, 3]
             count += 1
+    if count == 0:
+        return 0
+    # the branch of the inverse from the anchor holds in the whole (convex) cell: det J > 0
+    a0, b0 = (near_a, near_b) if m == k0 else (0.5, 0.5)
+    anchor = inverse_anchor(geo, m, a0, b0)
+    x0, y0 = map_point(geo, m, a0, b0)  # the anchor's own point: r exact relative to it
+    for q in range(count):
+        a, b = invert_near(geo, m, anchor, qa[q] - x0, qb[q] - y0, qa[q], qb[q])
+        qa[q], qb[q] = min(max(a, 0.0), 1.0), min(max(b, 0.0), 1.0)
     return count
+
+
+@numba.njit(cache=True, inline="always")
+def inverse_anchor(geo, m, a0, b0):
+    """Return ``(a0, b0, J0⁻¹ (4), J0⁻¹ c (2))`` of cell ``m`` at ``(a0, b0)``.
+
+    The data :func:`invert_near` inverts the map near ``(a0, b0)`` with.
+    """
+    j00, j10, j01, j11 = tangents(geo, m, a0, b0)
+    inv = 1.0 / (j00 * j11 - j01 * j10)
+    i00, i01, i10, i11 = j11 * inv, -j01 * inv, -j10 * inv, j00 * inv
+    return (a0, b0, i00, i01, i10, i11, i00 * geo[m, 4] + i01 * geo[m, 5],
+            i10 * geo[m, 4] + i11 * geo[m, 5])
+
+
+@numba.njit(cache=True, inline="always")
+def invert_near(geo, m, anchor, rx, ry, tx, ty):
+    """Return the reference coordinates of the point ``x(a0, b0) + r`` of cell ``m``.
+
+    The bilinear map gives ``x(a0 + dξ, b0 + dη) - x(a0, b0) = J0 d + c dξ dη``, so with
+    ``e = J0⁻¹ r`` and ``k = J0⁻¹ c``: ``d = e - k P``, ``P = dξ dη`` the small root of
+    ``k_ξ k_η P² - (1 + e_ξ k_η + e_η k_ξ) P + e_ξ e_η = 0`` (in the form without
+    cancellation). Newton from the anchor, and from the cell's centre (``t``: the point
+    relative to the cell's origin), where that root does not exist.
+    """
+    a0, b0, i00, i01, i10, i11, kx, ky = anchor
+    ea, eb = i00 * rx + i01 * ry, i10 * rx + i11 * ry
+    half_b = 0.5 * (1.0 + ea * ky + eb * kx)
+    disc = half_b * half_b - kx * ky * (ea * eb)
+    if half_b > 0.0 and disc >= 0.0:
+        pr = (ea * eb) / (half_b + np.sqrt(disc))
+        return a0 + (ea - kx * pr), b0 + (eb - ky * pr)
+    a, b, ok = newton(geo, m, rx, ry, a0, b0)
+    if not ok:
+        a, b, _ = inverse_map(geo, m, tx, ty)
+    return a, b
 
 
 @numba.njit(cache=True)

@@ -83,7 +83,8 @@ def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
     while head < n_seen and slots < MAX_CELLS:
         m = seen[head]
         head += 1
-        weight, inside = _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slots)
+        weight, inside = _cell_moments(geo, origin, k, m, quad, px, py, xi, eta, work, mom,
+                                       slots)
         held = weight > 0.0
         total += weight
         if inside and held:  # the domain lies in this cell: no other cell holds any of it
@@ -114,11 +115,12 @@ def _particle_domain(geo, origin, corners, neighbour, k, xi, eta, quad, px, py,
 
 
 @numba.njit(cache=True, inline="always")
-def _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slot):
+def _cell_moments(geo, origin, k, m, quad, px, py, xi, eta, work, mom, slot):
     """Cut the domain by cell ``m`` and put its pieces' moments in ``slot``.
 
     Returns the pieces' area (0: none; the slot is then untouched) and whether the domain lies
     inside the cell. Sets ``work``'s side flags (:func:`mpm.mesh_clip.crossed_sides`).
+    ``(xi, eta)``: the particle's reference coordinates in its cell ``k``.
     """
     dx, dy, sx, sy, cx, cy, qa, qb, qw, seen, tx, ty, tn, cross = work
     reversed_order = cell_polygon(geo, origin, k, m, cx, cy)
@@ -126,7 +128,10 @@ def _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slot):
         sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
     crossed_sides(sx, sy, cx, cy, reversed_order, cross)
     weight, inside = 0.0, False
-    for part in range(convex_parts(cx, cy, tx, ty, tn)):
+    parts = convex_parts(cx, cy, tx, ty, tn)
+    # no corner beyond a side of a convex cell: clipping would return the domain as it is
+    whole = parts == 1 and not (cross[0] or cross[1] or cross[2] or cross[3])
+    for part in range(parts):
         if part == 1:
             for e in range(4):  # a reflex cell: every side may matter
                 cross[e] = True
@@ -134,14 +139,14 @@ def _cell_moments(geo, origin, k, m, quad, px, py, work, mom, slot):
             sx[c], sy[c] = px + quad[2 * c], py + quad[2 * c + 1]
         if polygon_area(sx, sy, 4) < 0.0:
             sx[1], sx[3], sy[1], sy[3] = sx[3], sx[1], sy[3], sy[1]
-        n, cut = clip(sx, sy, 4, tx[part], ty[part], tn[part], dx, dy)
+        n, cut = (4, False) if whole else clip(sx, sy, 4, tx[part], ty[part], tn[part], dx, dy)
         inside = inside or not cut
         if n < 3 or polygon_area(sx, sy, n) <= 0.0:
             continue
         if weight == 0.0:
             for c in range(8):
                 mom[slot, c] = 0.0
-        for q in range(quad_points(geo, origin, k, m, sx, sy, n, qa, qb, qw)):
+        for q in range(quad_points(geo, origin, k, m, sx, sy, n, qa, qb, qw, xi, eta)):
             _moments(geo, m, qa[q], qb[q], qw[q], mom, slot)
             weight += qw[q]
     return weight, inside

@@ -15,8 +15,9 @@ from fem_runout.bench.meshes import BOWL, outline_overrides
 from fem_runout.config import load_case
 from fem_runout.methods import get
 from fem_runout.references import thacker as ref
-from mpm.mesh_clip import clip, convex_parts, polygon_area
+from mpm.mesh_clip import clip, convex_parts, inverse_anchor, invert_near, polygon_area
 from mpm.mesh_grid import MeshParticleGrid
+from mpm.mesh_locate import map_point
 from mpm.particles import Particles
 from mpm.quad_split import QuadSplitter
 from tests.quad_helpers import distorted_rectangle
@@ -65,6 +66,32 @@ def _translated_projection_error(n: int, shift: float) -> float:
     inner = np.hypot(xy[:, 0] - d - ref.L / 2 - ref.ETA, xy[:, 1] - 0.3 * d - ref.L / 2) <= (
         0.8 * ref.A)
     return float(np.sum(s.lumped_mass[:own][inner] * np.abs(h - exact)[inner]))
+
+
+def test_points_are_inverted_from_an_anchor_to_round_off_in_distorted_cells():
+    """The weights' quadrature points are inverted in closed form from a known point of the
+    cell (the particle, or the cell's centre): exact to round-off in strongly distorted convex
+    cells (trapezoids, kites, a 30 % jittered mesh), from any anchor to any point."""
+    rng = np.random.default_rng(7)
+    corners = [np.array([[0, 0], [4, 0], [0, 2], [3, 2.5]]),  # trapezoid-like
+               np.array([[0, 0], [2, -1], [-1, 2], [3, 3]]),  # kite
+               np.array([[1e5, 2e5], [1e5 + 5, 2e5 + 0.5], [1e5 - 1, 2e5 + 4],
+                         [1e5 + 6, 2e5 + 6]])]  # far from the origin, as on a DEM
+    g = _grid(0.3)
+    for k in range(0, g.n_cells, 7):
+        corners.append(g.coords[g.corners[k]])
+    worst = 0.0
+    for c in corners:
+        c = np.asarray(c, dtype=float)
+        geo = np.array([[*(c[1] - c[0]), *(c[2] - c[0]), *(c[0] - c[1] - c[2] + c[3])]])
+        for a0, b0 in [(0.5, 0.5), *rng.uniform(0.0, 1.0, (3, 2))]:
+            anchor = inverse_anchor(geo, 0, a0, b0)
+            x0, y0 = map_point(geo, 0, a0, b0)
+            for a, b in rng.uniform(0.0, 1.0, (40, 2)):
+                tx, ty = map_point(geo, 0, a, b)
+                got = invert_near(geo, 0, anchor, tx - x0, ty - y0, tx, ty)
+                worst = max(worst, abs(got[0] - a), abs(got[1] - b))
+    assert worst < 1e-12, worst
 
 
 def test_a_translated_smooth_layer_projects_at_second_order_on_gmsh_cells():
