@@ -171,6 +171,10 @@ class ParticleGrid:
         """Grid row of each cell (the strips of :func:`mpm.migrate.balanced_destinations`)."""
         return cell // self.nx
 
+    def balance_weights(self, p) -> None:
+        """Per-particle cost for :func:`mpm.migrate.balanced_destinations`: None (counts)."""
+        return None
+
     def positions(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
         """Physical coordinates of points given in cells."""

@@ -32,7 +32,7 @@ from mpi4py import MPI
 from fem_runout.mesh import Discretization, Side
 from fem_runout.quadmesh import EDGE_CORNERS, KIND_CODES
 from mpm.grid import Basis
-from mpm.mesh_clip import seed_quads
+from mpm.mesh_clip import cost_estimate, seed_quads
 from mpm.mesh_locate import WALK_EDGES, jacobian_det, walk
 from mpm.mesh_weights import domain_basis, point_basis
 
@@ -177,6 +177,15 @@ class MeshParticleGrid:
     def rows(self, cell: np.ndarray) -> np.ndarray:
         """Strip of each cell (cells are sorted by centre: strips across the domain)."""
         return cell * self.n_rows // self.n_cells
+
+    def balance_weights(self, p) -> np.ndarray:
+        """Per-particle cost for :func:`mpm.migrate.balanced_destinations` (integers).
+
+        1, 2 or 3 (:func:`mpm.mesh_clip.cost_estimate`): a domain across a side of its cell
+        costs twice one inside (its weights cut two cells), one around a vertex three times.
+        """
+        return cost_estimate(self.geo, self.origin, np.ascontiguousarray(p.cell),
+                              np.ascontiguousarray(p.xi), np.ascontiguousarray(p.eta), p.quad())
 
     def positions(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:

@@ -125,6 +125,30 @@ def test_seeded_domains_tile_the_cells_and_sit_at_their_centroids():
     assert abs(np.sum(S * area[rows]) - cell_area.sum()) <= 1e-12 * cell_area.sum()
 
 
+def test_cost_estimate_follows_the_cells_a_moved_domain_reaches():
+    """The load balance's per-particle cost on a gmsh mesh (1 inside the cell, 2 across a
+    side, 3 around a vertex) against the entries the weights give: a domain called inside has
+    exactly its cell's four nodes, and the entries grow with the estimate (on avaKot's
+    corridor it named 6 entries for a side and 8-9 for a vertex for 94 % of the particles)."""
+    g = _grid(0.3)
+    rng = np.random.default_rng(3)
+    cell = np.repeat(np.arange(g.n_cells), 4)
+    xi0, eta0 = np.tile([0.25, 0.75, 0.25, 0.75], g.n_cells), np.tile([0.25, 0.25, 0.75, 0.75],
+                                                                      g.n_cells)
+    xi, eta, area, quad = g.seed_domains(cell, xi0, eta0, 2)
+    step = rng.uniform(-0.3, 0.3, (cell.size, 2))
+    cell, xi, eta, _, _ = g.displace(cell, xi, eta, step[:, 0], step[:, 1])
+    p = Particles(xi, eta, 0 * xi, 0 * xi, area, np.ones_like(xi), 0 * xi, 0 * xi, 0 * xi,
+                  0 * xi, 0 * xi, cell=cell, id=np.arange(cell.size))
+    p.set_quad(quad)
+    cost = g.balance_weights(p)
+    entries = np.diff(g.particle_basis(p).arrays[0])
+    assert set(np.unique(cost)) <= {1, 2, 3} and (cost == 1).sum() > 0 and (cost == 3).sum() > 0
+    assert (entries[cost == 1] == 4).all()
+    means = [entries[cost == c].mean() for c in (1, 2, 3)]
+    assert means[0] < means[1] < means[2], means  # more cells reached, more cost
+
+
 def test_quad_split_conserves_volume_and_tiles_the_parent():
     """Whole cells as domains (twice the limit each way): four children each, the volume
     exact (``V_a`` and ``V - V_a``), the children's domains covering the parent's area with
