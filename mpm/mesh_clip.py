@@ -270,10 +270,10 @@ def seed_quads(geo, cell, xi, eta, half):
 def cost_estimate(geo, origin, cell, xi, eta, quad):
     """Relative cost of each particle's step, 1, 2 or 3 (load balance only).
 
-    A domain inside its cell costs 1, one across one side 2, one across two (a vertex) 3:
-    measured on avaKot's corridor, where the domain weights (:func:`mpm.mesh_weights.
-    domain_basis`) and the transfers over their 4, 6 or 9 entries took 0.7, 1.4 and 2.0 µs
-    per particle and step. From the corners' sides alone (:func:`crossed_sides`).
+    A domain inside its cell costs 1, one across one side 2, one across two (a vertex) 3,
+    after avaKot's corridor: the domain weights (:func:`mpm.mesh_weights.domain_basis`) took
+    0.5 µs per particle inside a cell and 1.2 µs across edges, and the transfers follow the
+    4, 6 or 9 entries. From the corners' sides alone (:func:`crossed_sides`).
     """
     n = cell.size
     out = np.empty(n, dtype=np.int64)
