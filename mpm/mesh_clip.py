@@ -22,11 +22,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mpm.mesh_locate import inverse_map, map_point, newton, tangents
+from mpm.mesh_locate import inverse_anchor, inverse_map, invert_near, map_point
 
 __all__ = ["MAX_VISITED", "cell_polygon", "clip", "convex_parts", "cost_estimate", "crossed_sides",
-           "inverse_anchor", "invert_near", "polygon_area", "polygon_centroid", "quad_points",
-           "seed_quads"]
+           "polygon_area", "polygon_centroid", "quad_points", "seed_quads"]
 
 #: Most cells a domain's search visits (the cells it overlaps and their neighbours).
 MAX_VISITED = 48
@@ -198,42 +197,6 @@ def quad_points(geo, origin, k0, m, px, py, n, qa, qb, qw, near_a, near_b):
         a, b = invert_near(geo, m, anchor, qa[q] - x0, qb[q] - y0, qa[q], qb[q])
         qa[q], qb[q] = min(max(a, 0.0), 1.0), min(max(b, 0.0), 1.0)
     return count
-
-
-@numba.njit(cache=True, inline="always")
-def inverse_anchor(geo, m, a0, b0):
-    """Return ``(a0, b0, J0⁻¹ (4), J0⁻¹ c (2))`` of cell ``m`` at ``(a0, b0)``.
-
-    The data :func:`invert_near` inverts the map near ``(a0, b0)`` with.
-    """
-    j00, j10, j01, j11 = tangents(geo, m, a0, b0)
-    inv = 1.0 / (j00 * j11 - j01 * j10)
-    i00, i01, i10, i11 = j11 * inv, -j01 * inv, -j10 * inv, j00 * inv
-    return (a0, b0, i00, i01, i10, i11, i00 * geo[m, 4] + i01 * geo[m, 5],
-            i10 * geo[m, 4] + i11 * geo[m, 5])
-
-
-@numba.njit(cache=True, inline="always")
-def invert_near(geo, m, anchor, rx, ry, tx, ty):
-    """Return the reference coordinates of the point ``x(a0, b0) + r`` of cell ``m``.
-
-    The bilinear map gives ``x(a0 + dξ, b0 + dη) - x(a0, b0) = J0 d + c dξ dη``, so with
-    ``e = J0⁻¹ r`` and ``k = J0⁻¹ c``: ``d = e - k P``, ``P = dξ dη`` the small root of
-    ``k_ξ k_η P² - (1 + e_ξ k_η + e_η k_ξ) P + e_ξ e_η = 0`` (in the form without
-    cancellation). Newton from the anchor, and from the cell's centre (``t``: the point
-    relative to the cell's origin), where that root does not exist.
-    """
-    a0, b0, i00, i01, i10, i11, kx, ky = anchor
-    ea, eb = i00 * rx + i01 * ry, i10 * rx + i11 * ry
-    half_b = 0.5 * (1.0 + ea * ky + eb * kx)
-    disc = half_b * half_b - kx * ky * (ea * eb)
-    if half_b > 0.0 and disc >= 0.0:
-        pr = (ea * eb) / (half_b + np.sqrt(disc))
-        return a0 + (ea - kx * pr), b0 + (eb - ky * pr)
-    a, b, ok = newton(geo, m, rx, ry, a0, b0)
-    if not ok:
-        a, b, _ = inverse_map(geo, m, tx, ty)
-    return a, b
 
 
 @numba.njit(cache=True)

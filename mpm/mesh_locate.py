@@ -11,8 +11,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["INSIDE", "MAX_WALK", "NEWTON", "NEWTON_STEP", "WALK_EDGES", "inverse_map",
-           "jacobian_det", "map_point", "newton", "tangents", "walk", "walk_from"]
+__all__ = ["INSIDE", "MAX_WALK", "NEWTON", "NEWTON_STEP", "WALK_EDGES", "inverse_anchor",
+           "inverse_map", "invert_near", "jacobian_det", "map_point", "newton", "tangents", "walk",
+           "walk_from"]
 
 #: Corners of the four edges in the walk's order: ξ = 0, ξ = 1, η = 0, η = 1.
 WALK_EDGES = np.array([[0, 2], [1, 3], [0, 1], [2, 3]], dtype=np.int64)
@@ -83,6 +84,42 @@ def inverse_map(geo, k, tx, ty):
 
 
 @numba.njit(cache=True, inline="always")
+def inverse_anchor(geo, m, a0, b0):
+    """Return ``(a0, b0, J0⁻¹ (4), J0⁻¹ c (2))`` of cell ``m`` at ``(a0, b0)``.
+
+    The data :func:`invert_near` inverts the map near ``(a0, b0)`` with.
+    """
+    j00, j10, j01, j11 = tangents(geo, m, a0, b0)
+    inv = 1.0 / (j00 * j11 - j01 * j10)
+    i00, i01, i10, i11 = j11 * inv, -j01 * inv, -j10 * inv, j00 * inv
+    return (a0, b0, i00, i01, i10, i11, i00 * geo[m, 4] + i01 * geo[m, 5],
+            i10 * geo[m, 4] + i11 * geo[m, 5])
+
+
+@numba.njit(cache=True, inline="always")
+def invert_near(geo, m, anchor, rx, ry, tx, ty):
+    """Return the reference coordinates of the point ``x(a0, b0) + r`` of cell ``m``.
+
+    The bilinear map gives ``x(a0 + dξ, b0 + dη) - x(a0, b0) = J0 d + c dξ dη``, so with
+    ``e = J0⁻¹ r`` and ``k = J0⁻¹ c``: ``d = e - k P``, ``P = dξ dη`` the small root of
+    ``k_ξ k_η P² - (1 + e_ξ k_η + e_η k_ξ) P + e_ξ e_η = 0`` (in the form without
+    cancellation). Newton from the anchor, and from the cell's centre (``t``: the point
+    relative to the cell's origin), where that root does not exist.
+    """
+    a0, b0, i00, i01, i10, i11, kx, ky = anchor
+    ea, eb = i00 * rx + i01 * ry, i10 * rx + i11 * ry
+    half_b = 0.5 * (1.0 + ea * ky + eb * kx)
+    disc = half_b * half_b - kx * ky * (ea * eb)
+    if half_b > 0.0 and disc >= 0.0:
+        pr = (ea * eb) / (half_b + np.sqrt(disc))
+        return a0 + (ea - kx * pr), b0 + (eb - ky * pr)
+    a, b, ok = newton(geo, m, rx, ry, a0, b0)
+    if not ok:
+        a, b, _ = inverse_map(geo, m, tx, ty)
+    return a, b
+
+
+@numba.njit(cache=True, inline="always")
 def _locate(geo, origin, neighbour, kind, k, a0, b0, dx, dy):
     """Locate the point ``x(a0, b0) + (dx, dy)`` of cell ``k``: ``(cell, ξ, η, code)``.
 
@@ -91,9 +128,9 @@ def _locate(geo, origin, neighbour, kind, k, a0, b0, dx, dy):
     """
     if dx == 0.0 and dy == 0.0:
         return k, a0, b0, 0
-    a, b, ok = newton(geo, k, dx, dy, a0, b0)
     px, py = map_point(geo, k, a0, b0)
-    return walk_from(geo, origin, neighbour, kind, k, a, b, ok, px + dx, py + dy)
+    a, b = invert_near(geo, k, inverse_anchor(geo, k, a0, b0), dx, dy, px + dx, py + dy)
+    return walk_from(geo, origin, neighbour, kind, k, a, b, True, px + dx, py + dy)
 
 
 @numba.njit(cache=True, inline="always")

@@ -15,9 +15,9 @@ from fem_runout.bench.meshes import BOWL, outline_overrides
 from fem_runout.config import load_case
 from fem_runout.methods import get
 from fem_runout.references import thacker as ref
-from mpm.mesh_clip import clip, convex_parts, inverse_anchor, invert_near, polygon_area
+from mpm.mesh_clip import clip, convex_parts, polygon_area
 from mpm.mesh_grid import MeshParticleGrid
-from mpm.mesh_locate import map_point
+from mpm.mesh_locate import inverse_anchor, invert_near, map_point
 from mpm.particles import Particles
 from mpm.quad_split import QuadSplitter
 from tests.quad_helpers import distorted_rectangle
