@@ -123,8 +123,10 @@ def invert_near(geo, m, anchor, rx, ry, tx, ty):
 def _locate(geo, origin, neighbour, kind, k, a0, b0, dx, dy):
     """Locate the point ``x(a0, b0) + (dx, dy)`` of cell ``k``: ``(cell, ξ, η, code)``.
 
-    Walks across the edge the point lies beyond until it is inside a cell; ``code`` is 0, or
-    the kind of the boundary edge it stopped at (1 open, 2 wall), where ``(ξ, η)`` is clamped.
+    The point is first inverted in ``k`` in closed form from ``(a0, b0)`` (:func:`invert_near`;
+    a zero move keeps its bits), then :func:`walk_from` walks across the edge it lies beyond
+    until it is inside a cell; ``code`` is 0, or the kind of the boundary edge it stopped at
+    (1 open, 2 wall), where ``(ξ, η)`` is clamped.
     """
     if dx == 0.0 and dy == 0.0:
         return k, a0, b0, 0
@@ -139,7 +141,7 @@ def walk_from(geo, origin, neighbour, kind, k, a, b, ok, tx, ty):
 
     ``(a, b)`` are its coordinates in ``k`` if ``ok``; the result is as :func:`_locate`'s.
 
-    In each cell the point's coordinates come from Newton (:func:`inverse_map`); outside, the
+    In each further cell its coordinates come from Newton (:func:`inverse_map`); outside, the
     walk crosses the edge it lies farthest beyond that has a cell behind it, and stops at the
     boundary only when every edge the point lies beyond is a boundary edge.
     """

@@ -6,7 +6,8 @@ the split. The split is therefore chosen for speed, not by the mesh partition (a
 a small, moving part of the DEM sat 80 % on one of two ranks when particles followed the owner
 of their cell): rank ``r`` holds the particles of a strip of grid rows with about ``N/P``
 particles (:func:`balanced_destinations`), contiguous so that each rank writes to a compact
-range of nodes. The strips follow the particle counts per row, integers summed over the ranks,
+range of nodes. The strips follow the particle counts per row (on a gmsh mesh, each particle
+weighted by its estimated cost), integers summed over the ranks,
 so they are the same on every rank and change only when the flow moves.
 
 The solver rebalances every :data:`REBALANCE_EVERY` steps, not every step: in between a
