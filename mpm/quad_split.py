@@ -30,7 +30,15 @@ from mpm.mesh_clip import polygon_area, polygon_centroid
 from mpm.particles import Particles
 from mpm.split import DomainSplitter
 
-__all__ = ["QuadSplitter"]
+__all__ = ["RESPLIT", "QuadSplitter"]
+
+#: A domain still wider than this many split limits after a step's pair of cuts is cut again
+#: at once (collective); one between 1 and this many limits is cut in the next step's pair.
+#: On the grid a pair leaves a domain too wide only if it was more than twice the limit; on a
+#: mesh a half that moves into a smaller cell can come out a few percent over the limit in
+#: that cell's units (on the hemisphere's gmsh disc after half the steps), which cutting at once
+#: would cost a second evaluation of every particle's weights.
+RESPLIT = 2.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -172,8 +180,8 @@ class QuadSplitter(DomainSplitter):
         return _widths(p.quad_columns(), p.cell, self._jac)
 
     def _any_wide_here(self, parts: list[Particles]) -> bool:
-        """Whether a domain on this rank exceeds the limit (local)."""
-        return any(bool((self.widths(p) > self._limit).any()) for p in parts)
+        """Whether a domain on this rank exceeds :data:`RESPLIT` limits (local)."""
+        return any(bool((self.widths(p) > RESPLIT * self._limit).any()) for p in parts)
 
     def _wide(self, p: Particles, axis: int) -> np.ndarray:
         """Return the indices of the domains too long in direction ``axis`` (0: s, 1: t)."""

@@ -19,7 +19,7 @@ from mpm.mesh_clip import clip, convex_parts, polygon_area
 from mpm.mesh_grid import MeshParticleGrid
 from mpm.mesh_locate import inverse_anchor, invert_near, map_point
 from mpm.particles import Particles
-from mpm.quad_split import QuadSplitter
+from mpm.quad_split import RESPLIT, QuadSplitter
 from tests.quad_helpers import distorted_rectangle
 
 
@@ -175,6 +175,34 @@ def test_quad_split_conserves_volume_and_tiles_the_parent():
     moved = (math.fsum(areas * x), math.fsum(areas * y))
     assert max(abs(a - b) for a, b in zip(moved, first, strict=True)) <= 1e-11 * first[0]
     assert np.all(splitter.widths(q) <= 1.0 / 3.0)
+
+
+def test_a_pair_of_cuts_flags_only_domains_beyond_the_resplit_bound():
+    """After a step's pair of cuts a domain is cut again at once (a collective and a second
+    evaluation of the weights) only beyond RESPLIT limits; a half a little over the limit in
+    its cell's units (the cells are not parallelograms) waits for the next step's pair."""
+    g = _grid(0.3)
+    cell = np.arange(g.n_cells)
+    half = np.full(cell.size, 0.5)
+
+    def whole_cells() -> Particles:
+        xi, eta, area, quad = g.seed_domains(cell, half, half, 1)
+        p = Particles(xi, eta, 0 * xi, 0 * xi, area.copy(), 1.0 + 0 * xi, 0 * xi, 0 * xi,
+                      0 * xi, 0 * xi, 0 * xi, cell=cell, id=np.arange(cell.size))
+        p.set_quad(quad)
+        return p
+
+    four = QuadSplitter(g, 4, cell.size)  # limit 1/4: whole cells are 2 limits each way
+    q, pending = four.split_pair(whole_cells())
+    ratio = four.widths(q) * 4
+    assert len(q) == 4 * cell.size and not pending.wide
+    assert 1.0 < ratio.max() <= RESPLIT  # some halves over the limit: cut at the next step
+    ten = QuadSplitter(g, 10, cell.size)  # 5 limits: one pair leaves 2.5, beyond the bound
+    q, pending = ten.split_pair(whole_cells())
+    assert pending.wide and (ten.widths(q) * 10).max() > RESPLIT
+    q = ten.split(whole_cells())
+    assert len(q) == 16 * cell.size and (ten.widths(q) * 10).max() <= RESPLIT
+    assert math.fsum(q.volume) == math.fsum(whole_cells().volume)
 
 
 def test_stretch_maps_the_corner_arrays_in_place_by_the_velocity_gradient():
