@@ -36,7 +36,7 @@ from mpm.mesh_clip import cost_estimate, seed_quads
 from mpm.mesh_locate import WALK_EDGES, jacobian_det, walk
 from mpm.mesh_weights import domain_basis, point_basis
 
-__all__ = ["MeshBasis", "MeshParticleGrid"]
+__all__ = ["MeshBasis", "MeshParticleGrid", "crossing_lengths"]
 
 
 def _canonical(corners: np.ndarray) -> np.ndarray:
@@ -54,6 +54,30 @@ def _gather(comm: MPI.Comm, local: np.ndarray) -> np.ndarray:
     """Concatenate every rank's rows (collective), in rank order."""
     parts = comm.allgather(np.ascontiguousarray(local))
     return np.concatenate(parts) if parts else local
+
+
+def crossing_lengths(coords: np.ndarray, corners: np.ndarray, neighbour: np.ndarray
+                     ) -> np.ndarray:
+    """Return the CFL length of each cell's particles (:func:`mpm.step_limits.crossing_time`).
+
+    A cell's length is ``sqrt(2) |K| / d_max`` (``d_max`` its longer diagonal): ``Δx`` on a
+    square, and on a rectangle ``a × b`` the length ``sqrt(2) / sqrt(1/a² + 1/b²)`` whose
+    ratio to the square's is that of the two cells' explicit wave steps with lumped mass; a
+    skewed cell (one long diagonal) gets less than its shortest edge. A particle's length is
+    the smallest over its cell and the cells next to it, which its domain may reach.
+
+    Args:
+        coords: (n_nodes, 2) node coordinates.
+        corners: (n_cells, 4) corner nodes, lexicographic (``(0,0), (1,0), (0,1), (1,1)``).
+        neighbour: (n_cells, 4) neighbouring cells across the sides (-1: none).
+    """
+    x = coords[corners]
+    d1, d2 = x[:, 3] - x[:, 0], x[:, 2] - x[:, 1]
+    area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    longest = np.sqrt(np.maximum((d1**2).sum(axis=1), (d2**2).sum(axis=1)))
+    own = np.sqrt(2.0) * area / longest
+    around = np.where(neighbour >= 0, own[np.maximum(neighbour, 0)], np.inf)
+    return np.minimum(own, around.min(axis=1))
 
 
 class MeshParticleGrid:
@@ -93,11 +117,7 @@ class MeshParticleGrid:
         # Particles.transfer_speeds): half a domain's diagonal (<= 0.71 of the longest edge)
         # plus a cell's diagonal (<= 2 edges) is below 3 longest edges, so Δx = 1.5 of it
         self.dx = self.dy = 1.5 * float(np.sqrt((edge**2).sum(axis=-1)).max())
-        # the CFL length of a cell's particles: the shortest edge of the cell and its
-        # neighbours (min(Δx, Δy) on a grid)
-        width = np.sqrt((edge**2).sum(axis=-1)).min(axis=1)
-        around = np.where(self.neighbour >= 0, width[np.maximum(self.neighbour, 0)], np.inf)
-        self.local_size = np.minimum(width, around.min(axis=1))
+        self.local_size = crossing_lengths(self.coords, self.corners, self.neighbour)
         self.nx, self.n_rows = 1, max(1, int(np.sqrt(self.n_cells)))
         # the domain weights' buffers, kept between steps (:meth:`particle_basis`)
         self._offsets = np.empty(1, dtype=np.int64)

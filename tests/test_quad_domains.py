@@ -9,6 +9,7 @@ reference coordinates changed shape from cell to cell and the error stopped conv
 import math
 
 import numpy as np
+import pytest
 from mpi4py import MPI
 
 from fem_runout.bench.meshes import BOWL, outline_overrides
@@ -16,7 +17,7 @@ from fem_runout.config import load_case
 from fem_runout.methods import get
 from fem_runout.references import thacker as ref
 from mpm.mesh_clip import clip, convex_parts, polygon_area
-from mpm.mesh_grid import MeshParticleGrid
+from mpm.mesh_grid import MeshParticleGrid, crossing_lengths
 from mpm.mesh_locate import inverse_anchor, invert_near, map_point
 from mpm.particles import Particles
 from mpm.quad_split import RESPLIT, QuadSplitter
@@ -203,6 +204,27 @@ def test_a_pair_of_cuts_flags_only_domains_beyond_the_resplit_bound():
     q = ten.split(whole_cells())
     assert len(q) == 16 * cell.size and (ten.widths(q) * 10).max() <= RESPLIT
     assert math.fsum(q.volume) == math.fsum(whole_cells().volume)
+
+
+def test_crossing_lengths_are_the_grids_cell_size_on_squares_and_shorter_on_skewed_cells():
+    """DAMPM's CFL length on a mesh: sqrt(2)|K|/d_max, Δx on squares; on a rectangle a × b
+    sqrt(2)/sqrt(1/a² + 1/b²) (the ratio of the explicit wave steps); on a skewed
+    parallelogram (one long diagonal) less than its shortest edge; the smallest over the cell
+    and the cells across its sides."""
+    coords = np.array([[0, 0], [2, 0], [0, 2], [2, 2], [5, 0], [5, 2],
+                       [10, 0], [12, 0], [11.8, 0.6], [13.8, 0.6]])
+    corners = np.array([[0, 1, 2, 3], [1, 4, 3, 5], [6, 7, 8, 9]])
+    alone = crossing_lengths(coords, corners, np.full((3, 4), -1))
+    assert alone[0] == pytest.approx(2.0, rel=1e-15)
+    assert alone[1] == pytest.approx(math.sqrt(2.0) / math.hypot(1 / 3, 1 / 2), rel=1e-15)
+    # edges 2 and 1.90, height 0.6, diagonals 3.85 and 0.63
+    assert alone[2] == pytest.approx(math.sqrt(2.0) * 1.2 / math.hypot(3.8, 0.6), rel=1e-15)
+    assert alone[2] < 0.6 < math.hypot(1.8, 0.6)
+    row = crossing_lengths(coords, corners, np.array([[-1, 1, -1, -1], [0, 2, -1, -1],
+                                                      [1, -1, -1, -1]]))
+    assert row.tolist() == [min(alone[0], alone[1]), alone.min(), min(alone[1], alone[2])]
+    g = _grid(0.0)  # the 12 x 9 grid of unit squares
+    np.testing.assert_allclose(g.local_size, 1.0, rtol=1e-14, atol=0)
 
 
 def test_stretch_maps_the_corner_arrays_in_place_by_the_velocity_gradient():
