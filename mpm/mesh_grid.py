@@ -57,14 +57,17 @@ def _gather(comm: MPI.Comm, local: np.ndarray) -> np.ndarray:
 
 
 def crossing_lengths(coords: np.ndarray, corners: np.ndarray, neighbour: np.ndarray
-                     ) -> np.ndarray:
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Return the CFL length of each cell's particles (:func:`mpm.step_limits.crossing_time`).
 
     A cell's length is ``sqrt(2) |K| / d_max`` (``d_max`` its longer diagonal): ``Δx`` on a
     square, and on a rectangle ``a × b`` the length ``sqrt(2) / sqrt(1/a² + 1/b²)`` whose
     ratio to the square's is that of the two cells' explicit wave steps with lumped mass; a
-    skewed cell (one long diagonal) gets less than its shortest edge. A particle's length is
-    the smallest over its cell and the cells next to it, which its domain may reach.
+    skewed cell (one long diagonal) gets less than its shortest edge.
+
+    Returns:
+        ``(own, around)``: every cell's length, and the smallest over the cell and the cells
+        across its sides (for a particle whose domain reaches beyond its cell).
 
     Args:
         coords: (n_nodes, 2) node coordinates.
@@ -77,7 +80,7 @@ def crossing_lengths(coords: np.ndarray, corners: np.ndarray, neighbour: np.ndar
     longest = np.sqrt(np.maximum((d1**2).sum(axis=1), (d2**2).sum(axis=1)))
     own = np.sqrt(2.0) * area / longest
     around = np.where(neighbour >= 0, own[np.maximum(neighbour, 0)], np.inf)
-    return np.minimum(own, around.min(axis=1))
+    return own, np.minimum(own, around.min(axis=1))
 
 
 class MeshParticleGrid:
@@ -117,7 +120,8 @@ class MeshParticleGrid:
         # Particles.transfer_speeds): half a domain's diagonal (<= 0.71 of the longest edge)
         # plus a cell's diagonal (<= 2 edges) is below 3 longest edges, so Δx = 1.5 of it
         self.dx = self.dy = 1.5 * float(np.sqrt((edge**2).sum(axis=-1)).max())
-        self.local_size = crossing_lengths(self.coords, self.corners, self.neighbour)
+        self.cell_size, self.local_size = crossing_lengths(self.coords, self.corners,
+                                                           self.neighbour)
         self.nx, self.n_rows = 1, max(1, int(np.sqrt(self.n_cells)))
         # the domain weights' buffers, kept between steps (:meth:`particle_basis`)
         self._offsets = np.empty(1, dtype=np.int64)
@@ -261,6 +265,15 @@ class MeshParticleGrid:
         from mpm.transfers import POINT
 
         return POINT
+
+    def crossing_sizes(self, p, basis: MeshBasis) -> np.ndarray:
+        """Return the CFL length of each particle (:func:`crossing_lengths`).
+
+        A domain inside its cell has its cell's four nodes only (:func:`domain_basis`) and
+        takes its cell's length; one reaching further the smallest around its cell.
+        """
+        inside = np.diff(basis.arrays[0]) == 4
+        return np.where(inside, self.cell_size[p.cell], self.local_size[p.cell])
 
     def particle_basis(self, p) -> MeshBasis:
         """Return the domain weights of particles ``p`` on global nodes (:func:`domain_basis`)."""

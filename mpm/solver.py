@@ -180,7 +180,7 @@ class MPMSolver(CollectiveSteps):
     def _local_limits(self) -> np.ndarray:
         """Return this rank's :func:`mpm.step_limits.local_limits` (local)."""
         return local_limits(self.particles, self.grid, self._speed, self._slope, self._gp,
-                            self.g)
+                            self.g, self._basis)
 
     def _limits_from(self, both: np.ndarray) -> tuple[float, float]:
         """:meth:`_step_limits` from the ranks' maxima of :meth:`_local_limits`."""

@@ -22,22 +22,26 @@ COURANT = 0.5
 VISCOUS = 0.5
 
 
-def crossing_time(p, grid, gp: np.ndarray, g: float) -> float:
-    """``min_p s_p / (|v_p| + sqrt(max(G_p, g) h_p))``, ``s_p`` the size around its cell."""
+def crossing_time(p, grid, gp: np.ndarray, g: float, basis) -> float:
+    """``min_p s_p / (|v_p| + sqrt(max(G_p, g) h_p))``, ``s_p`` the size of the cells it reaches.
+
+    ``basis``: the particles' weights (:meth:`mpm.mesh_grid.MeshParticleGrid.crossing_sizes`).
+    """
     speed = np.sqrt(p.u * p.u + p.v * p.v) + np.sqrt(np.maximum(gp, g) * p.h)
-    size = grid.local_size[p.cell]
+    size = grid.crossing_sizes(p, basis)
     ok = speed > 0.0
     return float(np.min(size[ok] / speed[ok], initial=np.inf))
 
 
-def local_limits(p, grid, speed: float, slope: float, gp: np.ndarray, g: float) -> np.ndarray:
+def local_limits(p, grid, speed: float, slope: float, gp: np.ndarray, g: float, basis
+                 ) -> np.ndarray:
     """Return this rank's ``[top speed, steepest slope]``, to maximise over the ranks.
 
     On the structured grid the top speed of the particles (:func:`mpm.forces.particle_forces`
     gives it); with cells of many sizes minus each particle's own crossing time (a max
     reduction then gives the minimum; negation is exact).
     """
-    first = speed if grid.structured else -crossing_time(p, grid, gp, g)
+    first = speed if grid.structured else -crossing_time(p, grid, gp, g, basis)
     return np.array([first, slope], dtype=float)
 
 

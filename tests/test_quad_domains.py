@@ -209,22 +209,35 @@ def test_a_pair_of_cuts_flags_only_domains_beyond_the_resplit_bound():
 def test_crossing_lengths_are_the_grids_cell_size_on_squares_and_shorter_on_skewed_cells():
     """DAMPM's CFL length on a mesh: sqrt(2)|K|/d_max, Δx on squares; on a rectangle a × b
     sqrt(2)/sqrt(1/a² + 1/b²) (the ratio of the explicit wave steps); on a skewed
-    parallelogram (one long diagonal) less than its shortest edge; the smallest over the cell
-    and the cells across its sides."""
+    parallelogram (one long diagonal) less than its shortest edge; for a domain reaching
+    beyond its cell the smallest over the cell and the cells across its sides, for one inside
+    its cell (four weights) the cell's own."""
     coords = np.array([[0, 0], [2, 0], [0, 2], [2, 2], [5, 0], [5, 2],
                        [10, 0], [12, 0], [11.8, 0.6], [13.8, 0.6]])
     corners = np.array([[0, 1, 2, 3], [1, 4, 3, 5], [6, 7, 8, 9]])
-    alone = crossing_lengths(coords, corners, np.full((3, 4), -1))
+    alone, same = crossing_lengths(coords, corners, np.full((3, 4), -1))
+    assert same.tolist() == alone.tolist()
     assert alone[0] == pytest.approx(2.0, rel=1e-15)
     assert alone[1] == pytest.approx(math.sqrt(2.0) / math.hypot(1 / 3, 1 / 2), rel=1e-15)
     # edges 2 and 1.90, height 0.6, diagonals 3.85 and 0.63
     assert alone[2] == pytest.approx(math.sqrt(2.0) * 1.2 / math.hypot(3.8, 0.6), rel=1e-15)
     assert alone[2] < 0.6 < math.hypot(1.8, 0.6)
-    row = crossing_lengths(coords, corners, np.array([[-1, 1, -1, -1], [0, 2, -1, -1],
-                                                      [1, -1, -1, -1]]))
+    own, row = crossing_lengths(coords, corners, np.array([[-1, 1, -1, -1], [0, 2, -1, -1],
+                                                           [1, -1, -1, -1]]))
+    assert own.tolist() == alone.tolist()
     assert row.tolist() == [min(alone[0], alone[1]), alone.min(), min(alone[1], alone[2])]
     g = _grid(0.0)  # the 12 x 9 grid of unit squares
     np.testing.assert_allclose(g.local_size, 1.0, rtol=1e-14, atol=0)
+    g = _grid(0.3)
+    k = int(np.flatnonzero((g.local_size < g.cell_size) & (g.neighbour >= 0).all(axis=1))[0])
+    cell = np.array([k, k])
+    xi, eta, area, quad = g.seed_domains(cell, np.array([0.5, 0.5]), np.array([0.5, 0.5]), 4)
+    p = Particles(xi, eta, 0 * xi, 0 * xi, area, 1.0 + 0 * xi, 0 * xi, 0 * xi, 0 * xi, 0 * xi,
+                  0 * xi, cell=cell, id=np.arange(2))
+    quad[1] *= 6.0  # 1.5 cells wide: reaches the neighbours
+    p.set_quad(quad)
+    sizes = g.crossing_sizes(p, g.particle_basis(p))
+    assert sizes.tolist() == [g.cell_size[k], g.local_size[k]]
 
 
 def test_stretch_maps_the_corner_arrays_in_place_by_the_velocity_gradient():
