@@ -65,14 +65,14 @@ def crossing_lengths(coords: np.ndarray, corners: np.ndarray, neighbour: np.ndar
     ratio to the square's is that of the two cells' explicit wave steps with lumped mass; a
     skewed cell (one long diagonal) gets less than its shortest edge.
 
-    Returns:
-        ``(own, around)``: every cell's length, and the smallest over the cell and the cells
-        across its sides (for a particle whose domain reaches beyond its cell).
-
     Args:
         coords: (n_nodes, 2) node coordinates.
         corners: (n_cells, 4) corner nodes, lexicographic (``(0,0), (1,0), (0,1), (1,1)``).
         neighbour: (n_cells, 4) neighbouring cells across the sides (-1: none).
+
+    Returns:
+        ``(own, around)``: every cell's length, and the smallest over the cell and the cells
+        across its sides (for a particle whose domain reaches beyond its cell).
     """
     x = coords[corners]
     d1, d2 = x[:, 3] - x[:, 0], x[:, 2] - x[:, 1]

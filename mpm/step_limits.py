@@ -39,7 +39,8 @@ def local_limits(p, grid, speed: float, slope: float, gp: np.ndarray, g: float, 
 
     On the structured grid the top speed of the particles (:func:`mpm.forces.particle_forces`
     gives it); with cells of many sizes minus each particle's own crossing time (a max
-    reduction then gives the minimum; negation is exact).
+    reduction then gives the minimum; negation is exact), from the particles' weights
+    ``basis`` (:func:`crossing_time`).
     """
     first = speed if grid.structured else -crossing_time(p, grid, gp, g, basis)
     return np.array([first, slope], dtype=float)
