@@ -60,7 +60,8 @@ def build_problem(case: Case, comm: MPI.Comm) -> Problem:
     u = np.broadcast_to(np.asarray(u_fn(x, y), float), x.shape)
     v = np.broadcast_to(np.asarray(v_fn(x, y), float), x.shape)
     num = case.numerics
-    slope = slope_geometry(disc, init["z"], case.gravity, case.curvature) \
+    slope = slope_geometry(disc, init["z"], case.gravity, case.curvature,
+                           case.model.curvature_scale) \
         if case.slope_form else None
     return Problem(
         case=case, disc=disc, init=init, velocity=(u, v), gravity=case.gravity,

@@ -186,10 +186,16 @@ class ModelSpec(StrictSpec):
         curvature: Add the centrifugal acceleration ``u·H·u`` of a curved bed to the normal
             stress of the friction (``slope`` form only). Default: on with the ``slope``
             form, as in com1DFA (``curvAccInFriction = 1``) and RAMMS.
+        curvature_scale: Length [m] over which the bed is smoothed (Gaussian standard
+            deviation) before its Hessian ``H`` is taken for ``u·H·u`` (in ``G`` and, with
+            ``curvature``, in the friction; ``slope`` form only); the bed and its slope
+            stay unsmoothed (:mod:`fem_runout.physics.bed_filter`). None: ``H`` of the nodal
+            bed itself (its roughness down to the cells).
     """
 
     form: Literal["horizontal", "slope"] | None = None
     curvature: Bool | None = None
+    curvature_scale: Real | None = Field(None, gt=0)
 
 
 class CheckpointSpec(StrictSpec):
@@ -338,6 +344,10 @@ class Case(StrictSpec):
         if self.model.curvature and not self.slope_form:
             raise SpecError("needs model.form: slope (the default with terrain.dem)",
                             "model.curvature")
+        if self.model.curvature_scale is not None and not self.slope_form:
+            raise SpecError("smooths the bed's curvature of the slope-consistent form: needs "
+                            "model.form: slope (the default with terrain.dem)",
+                            "model.curvature_scale")
         return self
 
     @property

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fem_runout.physics.bed_filter import heat_smoothed
 from fem_runout.physics.recovery import corrected_hessian
 
 __all__ = ["BedFrame", "SlopeGeometry", "lumped_gradient", "lumped_hessian", "nodal_gradient",
@@ -137,7 +138,8 @@ def lumped_hessian(disc, gradient: np.ndarray) -> np.ndarray:
     return np.stack([gx[:, 0], 0.5 * (gx[:, 1] + gy[:, 0]), gy[:, 1]], axis=1)
 
 
-def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False) -> SlopeGeometry:
+def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False,
+                   curvature_scale: float | None = None) -> SlopeGeometry:
     """Build the :class:`SlopeGeometry` of a Q1 bed on a discretization (collective).
 
     The gradient is the lumped projection of ``∇Z``; the Hessian that of the gradient's
@@ -150,8 +152,12 @@ def slope_geometry(disc, z: np.ndarray, gravity: float, curvature: bool = False)
         z: Nodal bed elevation (local, ghosts included).
         gravity: ``g`` [m/s²].
         curvature: Centrifugal term in the friction's normal stress.
+        curvature_scale: Take ``H`` from the bed smoothed over this length [m]
+            (:func:`fem_runout.physics.bed_filter.heat_smoothed`); None: from the bed itself.
     """
     grad = lumped_gradient(disc, z)
-    hess = (lumped_hessian(disc, grad) if disc.structured
-            else corrected_hessian(disc, grad, lambda g: lumped_hessian(disc, g)))
+    base = grad if curvature_scale is None else lumped_gradient(
+        disc, heat_smoothed(disc, z, curvature_scale))
+    hess = (lumped_hessian(disc, base) if disc.structured
+            else corrected_hessian(disc, base, lambda g: lumped_hessian(disc, g)))
     return SlopeGeometry(grad, hess, gravity, curvature)

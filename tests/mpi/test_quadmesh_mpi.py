@@ -99,7 +99,11 @@ def test_particles_cross_ranks_on_an_unstructured_partition():
 
 
 def test_bed_curvature_on_a_jittered_mesh_has_the_bits_of_one_rank():
-    """The recovered Hessian (fem_runout.physics.recovery) does not depend on the partition."""
+    """The recovered Hessian (fem_runout.physics.recovery) does not depend on the partition.
+
+    Nor does the Hessian of the bed smoothed over ``model.curvature_scale``
+    (fem_runout.physics.bed_filter).
+    """
     sides = {s: "open" for s in ("left", "right", "bottom", "top")}
     parts = []
     for comm in (WORLD, MPI.COMM_SELF):
@@ -107,10 +111,14 @@ def test_bed_curvature_on_a_jittered_mesh_has_the_bits_of_one_rank():
         x, y = disc.coords[:, 0], disc.coords[:, 1]
         z = 0.002 * x * x + 0.003 * x * y - 0.001 * y * y + np.sin(x / 9.0) * np.cos(y / 7.0)
         geometry = slope_geometry(disc, z, 9.81, True)
+        smooth = slope_geometry(disc, z, 9.81, True, 10.0)
         order = np.lexsort((y, x))
-        parts.append((disc.coords[order, :2], geometry.hess[order], geometry.grad[order]))
-    (xw, hw, gw), (xs, hs, gs) = parts
+        parts.append((disc.coords[order, :2], geometry.hess[order], geometry.grad[order],
+                      smooth.hess[order]))
+    (xw, hw, gw, sw), (xs, hs, gs, ss) = parts
     at = np.searchsorted(xs[:, 0] * 1e6 + xs[:, 1], xw[:, 0] * 1e6 + xw[:, 1])
     np.testing.assert_array_equal(xs[at], xw)
     np.testing.assert_array_equal(hs[at], hw)  # the same bits
     np.testing.assert_array_equal(gs[at], gw)
+    np.testing.assert_array_equal(ss[at], sw)
+    assert np.abs(sw - hw).max() > 1e-3  # (the smoothing did change it)
