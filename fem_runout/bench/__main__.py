@@ -8,6 +8,7 @@ from types import ModuleType
 from fem_runout.bench import (
     before_after,
     dampm_report,
+    dem_sampling,
     dry_sensitivity,
     ensemble_report,
     ensemble_throughput,
@@ -28,6 +29,7 @@ COMMANDS: dict[str, ModuleType] = {
     "dampm-report": dampm_report,
     "real-case": real_case,
     "dry-sensitivity": dry_sensitivity,
+    "dem-sampling": dem_sampling,
     "before-after": before_after,
     "peers": peers,
     "footprint": footprint,
