@@ -220,11 +220,15 @@ def build_discretization(
     return disc
 
 
-def cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``∫_K φ_i ∇φ_j``, ``∫_K φ_i`` and |K| for bilinear cells with node coordinates ``xc``.
+def physical_basis(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Q1 basis, its physical gradients and the weights at the Gauss points of bilinear cells.
 
     Args:
         xc: (n_cells, 4, 2) node coordinates in the Q1 reference order.
+
+    Returns:
+        ``(phi, grad, w)``: (nq, 4) values, (n_cells, nq, 4, 2) gradients and (n_cells, nq)
+        weights ``w_q |det J|`` (basix's degree-4 rule).
     """
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
     el = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
@@ -236,7 +240,16 @@ def cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Jinv[..., 0, 0], Jinv[..., 1, 1] = J[..., 1, 1] / detJ, J[..., 0, 0] / detJ
     Jinv[..., 0, 1], Jinv[..., 1, 0] = -J[..., 0, 1] / detJ, -J[..., 1, 0] / detJ
     grad = np.einsum("qkb,cqba->cqka", dphi, Jinv)  # physical gradients
-    w = wts[None, :] * np.abs(detJ)
+    return phi, grad, wts[None, :] * np.abs(detJ)
+
+
+def cell_integrals(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``∫_K φ_i ∇φ_j``, ``∫_K φ_i`` and |K| for bilinear cells with node coordinates ``xc``.
+
+    Args:
+        xc: (n_cells, 4, 2) node coordinates in the Q1 reference order.
+    """
+    phi, grad, w = physical_basis(xc)
     C = np.einsum("cq,qi,cqja->cija", w, phi, grad)
     phi_int = np.einsum("cq,qi->ci", w, phi)
     return C, phi_int, w.sum(axis=1)

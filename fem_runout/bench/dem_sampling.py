@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from fem_runout.bench.real_case import ROOT, run_case
+from fem_runout.bench.real_case import ROOT, add_variant_arguments, run_case
 from fem_runout.config import load_case
-from fem_runout.methods import get, method_names
+from fem_runout.methods import get
 from fem_runout.terrain.dem import read_raster
 
 __all__ = ["HELP", "add_arguments", "half_pixel_shift", "main", "write_shifted"]
@@ -40,14 +40,11 @@ BEGIN, END = "<!-- dem-sampling -->", "<!-- /dem-sampling -->"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's options."""
-    parser.add_argument("--methods", nargs="+", default=method_names(), choices=method_names())
-    parser.add_argument("--ranks", type=int, default=2)
-    parser.add_argument("--case", type=Path, default=ROOT / "cases" / "avakot.yaml")
+    add_variant_arguments(parser)
     parser.add_argument("--cell-size", type=float, default=5.0,
                         help="domain.cell_size [m] (the DEM's pixel: nodes on its centres)")
     parser.add_argument("--scales", type=float, nargs="+", default=[0.0, 10.0],
                         help="model.curvature_scale values [m]; 0 leaves it unset")
-    parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "real_terrain.md")
     parser.add_argument("--keep", action="store_true",
                         help="reuse the runs whose summary.json exists")
 

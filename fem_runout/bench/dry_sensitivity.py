@@ -21,9 +21,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from fem_runout.bench.real_case import ROOT, run_case
+from fem_runout.bench.real_case import ROOT, add_variant_arguments, run_case
 from fem_runout.config import load_case
-from fem_runout.methods import get, method_names
+from fem_runout.methods import get
 
 __all__ = ["HELP", "add_arguments", "main"]
 
@@ -33,10 +33,7 @@ BEGIN, END = "<!-- sensitivity -->", "<!-- /sensitivity -->"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's options."""
-    parser.add_argument("--methods", nargs="+", default=method_names(), choices=method_names())
-    parser.add_argument("--ranks", type=int, default=2)
-    parser.add_argument("--case", type=Path, default=ROOT / "cases" / "avakot.yaml")
-    parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "real_terrain.md")
+    add_variant_arguments(parser)
 
 
 def variants(case: Path) -> list[tuple[str, list[str]]]:

@@ -28,7 +28,8 @@ from typing import Any
 
 from fem_runout.methods import default_method, method_names
 
-__all__ = ["HELP", "add_arguments", "format_table", "main", "run_case"]
+__all__ = ["HELP", "add_arguments", "add_variant_arguments", "format_table", "main",
+           "run_case"]
 
 HELP = "run the real-terrain case with a method at 1 and 2 ranks; update docs/real_terrain.md"
 ROOT = Path(__file__).resolve().parents[2]
@@ -58,6 +59,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "real_terrain.md")
     parser.add_argument("--collect", action="store_true",
                         help="do not run; read the existing result folders")
+
+
+def add_variant_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of the benches that run variants of the real-terrain case.
+
+    ``--methods`` (all), ``--ranks`` (2), ``--case`` (cases/avakot.yaml) and ``--doc``
+    (docs/real_terrain.md, where the bench writes its table).
+    """
+    parser.add_argument("--methods", nargs="+", default=method_names(), choices=method_names())
+    parser.add_argument("--ranks", type=int, default=2)
+    parser.add_argument("--case", type=Path, default=ROOT / "cases" / "avakot.yaml")
+    parser.add_argument("--doc", type=Path, default=ROOT / "docs" / "real_terrain.md")
 
 
 def _out_dir(name: str, method: str, ranks: int) -> Path:

@@ -22,29 +22,22 @@ from __future__ import annotations
 
 import math
 
-import basix
 import numpy as np
 from mpi4py import MPI
+
+from fem_runout.mesh import physical_basis
 
 __all__ = ["element_stiffness", "heat_smoothed", "heat_steps"]
 
 
 def element_stiffness(xc: np.ndarray) -> np.ndarray:
-    """(n_cells, 4, 4) element stiffness ``∫_K ∇φ_a·∇φ_b`` of bilinear cells (Gauss, 4×4 pts).
+    """(n_cells, 4, 4) element stiffness ``∫_K ∇φ_a·∇φ_b`` of bilinear cells.
 
     Args:
         xc: (n_cells, 4, 2) node coordinates in the Q1 reference order.
     """
-    pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 6)
-    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    dphi = np.stack([element.tabulate(1, pts)[k, :, :, 0] for k in (1, 2)], axis=-1)
-    jac = np.einsum("cka,qkb->cqab", xc, dphi)  # dx_a / dX_b
-    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
-    inv = np.empty_like(jac)
-    inv[..., 0, 0], inv[..., 1, 1] = jac[..., 1, 1] / det, jac[..., 0, 0] / det
-    inv[..., 0, 1], inv[..., 1, 0] = -jac[..., 0, 1] / det, -jac[..., 1, 0] / det
-    grad = np.einsum("qkb,cqba->cqka", dphi, inv)  # physical gradients
-    stiff = np.einsum("cq,cqia,cqja->cij", wts[None, :] * np.abs(det), grad, grad)
+    _, grad, w = physical_basis(xc)
+    stiff = np.einsum("cq,cqia,cqja->cij", w, grad, grad)
     return 0.5 * (stiff + stiff.transpose(0, 2, 1))
 
 
