@@ -61,14 +61,9 @@ def half_pixel_shift(values: np.ndarray, rows: int = 1, cols: int = 1) -> np.nda
     north: ``(1, 1)`` moves the samples south-east); the edge rows and columns repeat their
     neighbours'. NaN (nodata) wherever one of the four is NaN.
     """
-    v = np.asarray(values, dtype=float)
-    p = np.concatenate([v, v[-1:]] if rows > 0 else [v[:1], v], axis=0)
-    p = np.concatenate([p, p[:, -1:]] if cols > 0 else [p[:, :1], p], axis=1)
-    a = p[:-1] if rows > 0 else p[1:]
-    b = p[1:] if rows > 0 else p[:-1]
-    quads = [q[:, :-1] if cols > 0 else q[:, 1:] for q in (a, b)]
-    quads += [q[:, 1:] if cols > 0 else q[:, :-1] for q in (a, b)]
-    return 0.25 * (quads[0] + quads[2] + quads[1] + quads[3])
+    pad = ((0, 1) if rows > 0 else (1, 0), (0, 1) if cols > 0 else (1, 0))
+    p = np.pad(np.asarray(values, dtype=float), pad, mode="edge")
+    return 0.25 * (p[:-1, :-1] + p[:-1, 1:] + p[1:, :-1] + p[1:, 1:])
 
 
 def write_shifted(dem: Path, out: Path, rows: int = 1, cols: int = 1) -> Path:
@@ -85,10 +80,10 @@ def write_shifted(dem: Path, out: Path, rows: int = 1, cols: int = 1) -> Path:
     return out
 
 
-def _cells(ref: dict[str, Any], shifted: list[dict[str, Any]], key: str, scale: float,
+def _cells(ref: dict[str, Any], shifted: list[dict[str, Any]], key: str, unit: float,
            fmt: str) -> str:
-    x = ref[key] / scale
-    ys = [s[key] / scale for s in shifted]
+    x = ref[key] / unit
+    ys = [s[key] / unit for s in shifted]
     worst = max((y / x - 1 for y in ys), key=abs)
     return f"{x:{fmt}} | {min(ys):{fmt}}–{max(ys):{fmt}} ({worst:+.1%})"
 
