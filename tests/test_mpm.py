@@ -129,7 +129,9 @@ def test_particle_cloud_is_written_for_paraview(tmp_path, monkeypatch):
     r = run(c, write=True, comm=COMM)
     pvd = (r.out_dir / "particles.pvd").read_text()
     assert pvd.count("<DataSet") == 3 and 'timestep="0.4"' in pvd
-    cloud = pv.read(r.out_dir / "particles" / "particles_0002.vtp")
+    path = r.out_dir / "particles" / "particles_0002.vtp"
+    assert 'compressor="vtkLZ4DataCompressor"' in path.read_bytes()[:400].decode("latin-1")
+    cloud = pv.read(path)
     assert cloud.n_points == r.particles
     assert np.unique(cloud.point_data["id"]).size == cloud.n_points
     volume = float(cloud.point_data["volume"].sum())
