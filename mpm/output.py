@@ -4,7 +4,7 @@ One VTK point cloud per output time (``particles/particles_NNNN.vtp``) and a
 ``particles.pvd`` collection with the times.
 
 The writer runs inside the time loop on rank 0 while the other ranks wait at the next step's
-first message, so it is kept cheap: pyvista (0.6 s to import) is imported when the writer
+first message, so it is kept cheap: pyvista (0.2–0.6 s to import) is imported when the writer
 is built, not at the first output, and the arrays are compressed with LZ4 (ParaView and
 VTK >= 8 read it), about 3 times faster than VTK's default zlib for files about 30 % larger
 (avaKot's 51 000 particles: 44 ms and 4.7 MB against 135 ms and 3.6 MB).
