@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from fem_runout.bench.markers import splice
 from fem_runout.bench.real_case import ROOT, add_variant_arguments, run_case
 from fem_runout.config import load_case
 from fem_runout.methods import get
@@ -126,10 +127,6 @@ def main(args: argparse.Namespace) -> int:
             lines.append(_row(method, scale, ref, shifted))
     table = "\n".join(lines)
     print(table)
-    text = args.doc.read_text() if args.doc.exists() else ""
-    if BEGIN not in text or END not in text:
+    if not splice(args.doc, BEGIN, END, table):
         print(f"{args.doc} has no {BEGIN} markers: table not written")
-        return 0
-    a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
-    args.doc.write_text(text[:a] + "\n" + table + "\n" + text[b:])
     return 0

@@ -21,6 +21,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from fem_runout.bench.markers import splice
 from fem_runout.bench.real_case import ROOT, add_variant_arguments, run_case
 from fem_runout.config import load_case
 from fem_runout.methods import get
@@ -76,10 +77,6 @@ def main(args: argparse.Namespace) -> int:
             ref = ref or summary
     table = "\n".join(lines)
     print(table)
-    if not args.doc.exists():  # the table is printed; nothing to splice it into
-        print(f"{args.doc} does not exist: table not written")
-        return 0
-    text = args.doc.read_text()
-    a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
-    args.doc.write_text(text[:a] + "\n" + table + "\n" + text[b:])
+    if not splice(args.doc, BEGIN, END, table):  # the table is printed either way
+        print(f"{args.doc} has no {BEGIN} markers: table not written")
     return 0

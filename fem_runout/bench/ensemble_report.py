@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fem_runout.bench.markers import splice
+
 __all__ = ["HELP", "add_arguments", "main", "method_rows"]
 
 HELP = "summarise finished ensembles (members.csv, pictures) into docs/ensembles.md"
@@ -79,9 +81,8 @@ def main(args: argparse.Namespace) -> int:
             shutil.copyfile(Path(folder) / f"{pic}.png", target)
             rel = Path("figures") / target.name
             pictures.append(f"![{method}: {pic.replace('_', ' ')}]({rel.as_posix()})")
-    text = args.doc.read_text()
-    a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
     body = "\n".join([*rows, "", *notes, "", *pictures])
-    args.doc.write_text(text[:a] + "\n" + body + "\n" + text[b:])
+    if not splice(args.doc, BEGIN, END, body):
+        print(f"{args.doc} has no {BEGIN} markers: summary not written")
     print("\n".join(rows + notes))
     return 0

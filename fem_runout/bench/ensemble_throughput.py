@@ -25,6 +25,8 @@ from pathlib import Path
 
 import yaml
 
+from fem_runout.bench.markers import between, splice
+
 __all__ = ["HELP", "add_arguments", "main"]
 
 HELP = "ensemble wall time on 1 rank (members in turn) against N ranks (side by side)"
@@ -73,11 +75,11 @@ def main(args: argparse.Namespace) -> int:
            f"{args.ranks} | {many:.1f} | {many / one:.2f} |")
     print(row)
     if args.doc is not None:
-        text = args.doc.read_text()
-        a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
-        rows = [r for r in text[a:b].strip().splitlines() if r.strip()]
+        rows = [r for r in (between(args.doc.read_text(), BEGIN, END) or "").strip()
+                .splitlines() if r.strip()]
         if not rows:
             rows = ["| case | members | 1 rank, in turn [s] | ranks | side by side [s] | ratio |",
                     "|---|---:|---:|---:|---:|---:|"]
-        args.doc.write_text(text[:a] + "\n" + "\n".join([*rows, row]) + "\n" + text[b:])
+        if not splice(args.doc, BEGIN, END, "\n".join([*rows, row])):
+            print(f"{args.doc} has no {BEGIN} markers: row not written")
     return 0

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fem_runout.bench.markers import between, splice
 from fem_runout.methods import method_names
 
 __all__ = ["HELP", "add_arguments", "main", "pad_ascii_grid"]
@@ -118,9 +119,7 @@ def _table(rows: list[dict]) -> str:
 
 def _kept_rows(text: str, ran: set[str]) -> list[str]:
     """Return the doc's table rows of the methods not run now (kept as last measured)."""
-    if BEGIN not in text or END not in text:
-        return []
-    block = text.split(BEGIN, 1)[1].split(END, 1)[0]
+    block = between(text, BEGIN, END) or ""
     return [line for line in block.splitlines() if line.startswith("| ")
             and not line.startswith("| method") and line.split("|")[1].strip() not in ran]
 
@@ -150,9 +149,6 @@ def main(args: argparse.Namespace) -> int:
              f"{os.cpu_count()} cores; `python -m fem_runout.bench footprint "
              f"--ranks {args.ranks} --methods {' '.join(args.methods)}`"
              + ("; the other methods' rows as last measured" if kept else ""))
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        args.out.write_text(f"{head}{BEGIN}\n{table}\n\n{stamp}\n{END}{tail}")
+    splice(args.out, BEGIN, END, f"{table}\n\n{stamp}")
     print(table)
     return 0

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from fem_runout.bench.markers import splice
+
 __all__ = ["HELP", "add_arguments", "depth_maps_figure", "main", "our_metrics", "peer_metrics",
            "raster_metrics"]
 
@@ -160,10 +162,8 @@ def main(args: argparse.Namespace) -> int:
         return 2
     table = _table(rows)
     print(table)
-    if args.doc is not None:
-        text = args.doc.read_text()
-        a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
-        args.doc.write_text(text[:a] + "\n" + table + "\n" + text[b:])
+    if args.doc is not None and not splice(args.doc, BEGIN, END, table):
+        print(f"{args.doc} has no {BEGIN} markers: table not written")
     if args.figure is not None:
         depth_maps_figure({k: tuple(v) for k, v in maps.items()}, args.figure)
     return 0

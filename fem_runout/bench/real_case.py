@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from fem_runout.bench.markers import splice
 from fem_runout.methods import default_method, method_names
 
 __all__ = ["HELP", "add_arguments", "add_variant_arguments", "format_table", "main",
@@ -99,12 +100,8 @@ def format_table(rows: list[dict[str, Any]]) -> str:
 
 
 def _update_doc(doc: Path, table: str) -> None:
-    text = doc.read_text()
-    if BEGIN not in text or END not in text:
+    if not splice(doc, BEGIN, END, table):
         raise SystemExit(f"{doc} has no {BEGIN} ... {END} markers")
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    doc.write_text(f"{head}{BEGIN}\n{table}\n{END}{tail}")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -28,6 +28,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from fem_runout.bench.markers import splice
 from fem_runout.bench.real_case import ROOT, run_case
 from fem_runout.methods import method_names
 
@@ -134,11 +135,7 @@ def main(args: argparse.Namespace) -> int:
              f"--ranks {args.ranks} --rounds {args.rounds}"
              + "".join(f" --set {item}" for item in args.set) + "`")
     print(f"{table}\n\n{stamp}")
-    text = args.out.read_text() if args.out.exists() else ""
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        args.out.write_text(f"{head}{BEGIN}\n{table}\n\n{stamp}\n{END}{tail}")
+    splice(args.out, BEGIN, END, f"{table}\n\n{stamp}")
     if not all(s["same"] for s in rows.values()):
         print("the results differ between runs (see 'same result')")
         return 1
