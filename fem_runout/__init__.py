@@ -30,6 +30,11 @@ def _one_thread_per_rank() -> None:
 
 _one_thread_per_rank()
 
+# numba's cache checks a kernel's own file only: drop kernels whose imported modules changed
+from fem_runout.numba_cache import invalidate_once as _invalidate_once  # noqa: E402
+
+_invalidate_once()
+
 # The DOLFINx wheel finds its MPI library through mpi4py: load it before any submodule
 # imports DOLFINx (import sorting may put ``import dolfinx`` first in a module).
 from mpi4py import MPI as _MPI  # noqa: E402, F401
