@@ -41,6 +41,7 @@ from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import SlopeGeometry
 from mpm.collective import CollectiveSteps
+from mpm.constitutive import update_depth_and_stress
 from mpm.exchange import FoldExchange
 from mpm.fields import FieldWriter
 from mpm.grid import ParticleGrid
@@ -333,25 +334,13 @@ class MPMSolver(CollectiveSteps):
                                 grid_depth: np.ndarray | None = None) -> None:
         """Update the particle depth (eq. 42) and stress (eqs. 40-41) from the velocity gradient.
 
-        With ``grid_depth`` (:meth:`_grid_depth`) the depth entering eq. 42 is first capped,
-        ``h_p ← min(h_p, κ h̄_p)`` with ``κ`` = ``depth_cap``: where particles pile up, eq. 42's
-        Lagrangian depths drift far above the grid's (docs/dampm.md, "Depth cap").
+        :func:`mpm.constitutive.update_depth_and_stress` with this solver's rheology and
+        ``depth_cap``; a collapsed column stops the run at the next health check.
         """
-        p = self.particles
-        if grid_depth is not None:
-            p.h = np.minimum(p.h, self.depth_cap * grid_depth)
-        factor = 1.0 + dt * (grad[:, 0, 0] + grad[:, 1, 1])
-        if not (factor > 0.0).all():  # squeezed past zero in one step: stop, state kept
-            worst = int(np.argmin(factor))
-            self._problem = (f"a particle column collapsed (1 + dt div v = {factor[worst]:.3g} "
-                             f"<= 0, seed eq. 42) at particle {int(p.id[worst])}")
-            return
-        p.h = p.h / factor  # eq. 42
-        if self.rheology is None:
-            return
-        mu = self.rheology.effective_viscosity(p.h, p.u, p.v, grad)
-        d = 0.5 * (grad + np.swapaxes(grad, 1, 2))
-        p.sxx, p.syy, p.sxy = 2.0 * mu * d[:, 0, 0], 2.0 * mu * d[:, 1, 1], 2.0 * mu * d[:, 0, 1]
+        problem = update_depth_and_stress(self.particles, dt, grad, self.rheology,
+                                          grid_depth, self.depth_cap)
+        if problem is not None:
+            self._problem = problem
 
     def _move(self, dx: np.ndarray, dy: np.ndarray) -> None:
         """Move the particles (eq. 39 with v^{k+1}); open sides remove, walls stop them."""
