@@ -16,50 +16,49 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["P2G_COLUMNS", "deposit", "deposit_momentum", "deposit_node", "flip_gather",
-           "flip_set", "g2p_flip", "gradient_terms",
-           "g2p_gradient", "gimp_interpolate", "interpolate", "p2g", "p2g_momentum"]
+__all__ = ["P2G_COLUMNS", "flip_gather", "flip_set", "fold", "g2p_flip", "g2p_gradient",
+           "gimp_interpolate", "gradient_terms", "interpolate", "momentum_columns",
+           "node_columns", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
 
 
 @numba.njit(cache=True, inline="always")
-def deposit(out, i, c, x, ext):
-    """Add ``x`` to node ``i``, column ``c`` in two folds (see :mod:`fem_runout.exact_sum`)."""
-    hi = (x + ext[c, 0]) - ext[c, 0]
-    out[i, c, 0] += hi
-    x -= hi
-    out[i, c, 1] += (x + ext[c, 1]) - ext[c, 1]
+def fold(x, e0, e1):
+    """``x`` as two folds ``(hi, lo)`` with the extractors ``e0, e1`` (:mod:`fem_runout.exact_sum`).
 
-
-@numba.njit(cache=True, inline="always")
-def deposit_momentum(out, i, p, w, rx, ry, mass, u, v, affine, ext):
-    """Deposit particle ``p``'s momentum ``m_p (v_p + C_p r) w`` at node ``i`` (columns 0, 1)."""
-    deposit(out, i, 0, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w, ext)
-    deposit(out, i, 1, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w, ext)
-
-
-@numba.njit(cache=True, inline="always")
-def deposit_node(out, i, p, w, gx, gy, rx, ry, mass, u, v, affine, body_x, body_y, sxx, syy,
-                 sxy, area, volume, ext):
-    """Deposit particle ``p``'s seven P2G columns at node ``i`` (seed eqs. 33-34).
-
-    Weight ``w``, gradient ``(gx, gy)``, ``r = x_i - x̄_p``; the order of :data:`P2G_COLUMNS`.
+    The kernels' helpers take and return scalars only: a helper that takes arrays costs a
+    reference-count call per array and call inside the caller's loop (numba does not prune
+    them there), which made the force pass nine times slower (session 34).
     """
-    deposit(out, i, 0, mass[p] * w, ext)
-    deposit(out, i, 1, mass[p] * (u[p] + (affine[0, p] * rx + affine[1, p] * ry)) * w, ext)
-    deposit(out, i, 2, mass[p] * (v[p] + (affine[2, p] * rx + affine[3, p] * ry)) * w, ext)
-    deposit(out, i, 3, body_x[p] * w + sxx[p] * gx + sxy[p] * gy, ext)
-    deposit(out, i, 4, body_y[p] * w + sxy[p] * gx + syy[p] * gy, ext)
-    deposit(out, i, 5, area[p] * w, ext)
-    deposit(out, i, 6, volume[p] * w, ext)
+    hi = (x + e0) - e0
+    x -= hi
+    return hi, (x + e1) - e1
 
 
 @numba.njit(cache=True, inline="always")
-def gradient_terms(g00, g01, g10, g11, i, vx, vy, gx, gy):
-    """Add node ``i``'s velocity times its weight gradient ``(gx, gy)`` to ``∇v`` at a particle."""
-    return g00 + vx[i] * gx, g01 + vx[i] * gy, g10 + vy[i] * gx, g11 + vy[i] * gy
+def node_columns(w, gx, gy, rx, ry, m, u, v, c0, c1, c2, c3, bx, by, sxx, syy, sxy, area,
+                 volume):
+    """Return a particle's seven P2G columns at a node (seed eqs. 33-34), as P2G_COLUMNS.
+
+    Weight ``w``, gradient ``(gx, gy)``, ``r = x_i - x̄_p``; the particle's mass, velocity,
+    affine velocity ``C``, body force, force tensor, area and volume.
+    """
+    return (m * w, m * (u + (c0 * rx + c1 * ry)) * w, m * (v + (c2 * rx + c3 * ry)) * w,
+            bx * w + sxx * gx + sxy * gy, by * w + sxy * gx + syy * gy, area * w, volume * w)
+
+
+@numba.njit(cache=True, inline="always")
+def momentum_columns(w, rx, ry, m, u, v, c0, c1, c2, c3):
+    """Return a particle's momentum ``m_p (v_p + C_p r) w`` at a node (p2g's columns 1, 2)."""
+    return m * (u + (c0 * rx + c1 * ry)) * w, m * (v + (c2 * rx + c3 * ry)) * w
+
+
+@numba.njit(cache=True, inline="always")
+def gradient_terms(g00, g01, g10, g11, vx, vy, gx, gy):
+    """Add a node's velocity ``(vx, vy)`` times its weight gradient ``(gx, gy)`` to ``∇v``."""
+    return g00 + vx * gx, g01 + vx * gy, g10 + vy * gx, g11 + vy * gy
 
 
 @numba.njit(cache=True, inline="always")
@@ -69,20 +68,14 @@ def node_index(i0, j0, a, b, nx, ny):
 
 
 @numba.njit(cache=True, inline="always")
-def _box_index(i0, j0, a, b, nx, ny, box):
-    """Position of node ``(a, b)`` of a particle's block in a box ``(row, col, rows, cols)``."""
-    return (min(j0 + b, ny) - box[0]) * box[3] + min(i0 + a, nx) - box[1]
-
-
-@numba.njit(cache=True, inline="always")
-def _centre(w, k0, n, p):
-    """Weighted centre ``Σ_a w[p, a] min(k0 + a, n)`` of a particle's nodes, in cell units.
+def _centre(w0, w1, w2, k0, n):
+    """Weighted centre ``Σ_a w_a min(k0 + a, n)`` of a particle's nodes, in cell units.
 
     The GIMP weights reproduce linear functions, so this is the centre ``x̄_p`` of the
     (clipped) particle domain and ``Σ_i S_ip (x_i - x̄_p) = 0``: APIC's affine part adds no
     momentum to the grid.
     """
-    return w[p, 0] * min(k0, n) + w[p, 1] * min(k0 + 1, n) + w[p, 2] * min(k0 + 2, n)
+    return w0 * min(k0, n) + w1 * min(k0 + 1, n) + w2 * min(k0 + 2, n)
 
 
 @numba.njit(cache=True)
@@ -116,8 +109,10 @@ def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy,
     """
     i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 7, 2))
+    r0, c0, cols = box[0], box[1], box[3]
     for p in range(i0.size):
-        xc, yc = _centre(wx, i0[p], nx, p), _centre(wy, j0[p], ny, p)
+        xc = _centre(wx[p, 0], wx[p, 1], wx[p, 2], i0[p], nx)
+        yc = _centre(wy[p, 0], wy[p, 1], wy[p, 2], j0[p], ny)
         for b in range(3):
             if wy[p, b] == 0.0 and dwy[p, b] == 0.0:
                 continue
@@ -128,9 +123,14 @@ def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy,
                 rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
                 gx, gy = dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b]
-                i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                deposit_node(out, i, p, w, gx, gy, rx, ry, mass, u, v, affine, body_x, body_y,
-                             sxx, syy, sxy, area, volume, ext)
+                i = (min(j0[p] + b, ny) - r0) * cols + min(i0[p] + a, nx) - c0
+                vals = node_columns(w, gx, gy, rx, ry, mass[p], u[p], v[p], affine[0, p],
+                                    affine[1, p], affine[2, p], affine[3, p], body_x[p],
+                                    body_y[p], sxx[p], syy[p], sxy[p], area[p], volume[p])
+                for c in range(7):
+                    hi, lo = fold(vals[c], ext[c, 0], ext[c, 1])
+                    out[i, c, 0] += hi
+                    out[i, c, 1] += lo
     return out
 
 
@@ -142,8 +142,10 @@ def p2g_momentum(basis, mass, u, v, affine, box, ext):
     """
     i0, j0, wx, dwx, wy, dwy, nx, ny, dx, dy = basis
     out = np.zeros((box[2] * box[3], 2, 2))
+    r0, c0, cols = box[0], box[1], box[3]
     for p in range(i0.size):
-        xc, yc = _centre(wx, i0[p], nx, p), _centre(wy, j0[p], ny, p)
+        xc = _centre(wx[p, 0], wx[p, 1], wx[p, 2], i0[p], nx)
+        yc = _centre(wy[p, 0], wy[p, 1], wy[p, 2], j0[p], ny)
         for b in range(3):
             if wy[p, b] == 0.0:
                 continue
@@ -153,8 +155,13 @@ def p2g_momentum(basis, mass, u, v, affine, box, ext):
                     continue
                 rx = (min(i0[p] + a, nx) - xc) * dx
                 w = wx[p, a] * wy[p, b]
-                i = _box_index(i0[p], j0[p], a, b, nx, ny, box)
-                deposit_momentum(out, i, p, w, rx, ry, mass, u, v, affine, ext)
+                i = (min(j0[p] + b, ny) - r0) * cols + min(i0[p] + a, nx) - c0
+                mx, my = momentum_columns(w, rx, ry, mass[p], u[p], v[p], affine[0, p],
+                                          affine[1, p], affine[2, p], affine[3, p])
+                for c, x in ((0, mx), (1, my)):
+                    hi, lo = fold(x, ext[c, 0], ext[c, 1])
+                    out[i, c, 0] += hi
+                    out[i, c, 1] += lo
     return out
 
 
@@ -195,25 +202,24 @@ def g2p_flip(basis, vx, vy, old_x, old_y, stopped, pu, pv,
                     continue
                 w = wx[p, a] * wy[p, b]
                 i = node_index(i0[p], j0[p], a, b, nx, ny)
-                u, v, du, dv, near = flip_gather(u, v, du, dv, near, w, i, vx, vy, old_x,
-                                                 old_y, stopped)
-        flip_set(p, u, v, du, dv, near, keep, pu, pv, u_out, v_out)
+                u, v, du, dv, near = flip_gather(u, v, du, dv, near, w, vx[i], vy[i], old_x[i],
+                                                 old_y[i], stopped[i])
+        u_out[p], v_out[p] = flip_set(u, v, du, dv, near, keep, pu[p], pv[p])
     return u_out, v_out
 
 
 @numba.njit(cache=True, inline="always")
-def flip_gather(u, v, du, dv, near, w, i, vx, vy, old_x, old_y, stopped):
-    """Add node ``i`` (weight ``w``) to a particle's PIC velocity, FLIP change and stop weight."""
-    return (u + w * vx[i], v + w * vy[i], du + w * (vx[i] - old_x[i]),
-            dv + w * (vy[i] - old_y[i]), near + w * stopped[i])
+def flip_gather(u, v, du, dv, near, w, vx, vy, old_x, old_y, stopped):
+    """Add a node (weight ``w``, its values) to a particle's PIC velocity, FLIP change, stop."""
+    return (u + w * vx, v + w * vy, du + w * (vx - old_x), dv + w * (vy - old_y),
+            near + w * stopped)
 
 
 @numba.njit(cache=True, inline="always")
-def flip_set(p, u, v, du, dv, near, keep, pu, pv, u_out, v_out):
-    """Particle ``p``'s new velocity: FLIP share ``keep``, PIC next to stopped nodes."""
+def flip_set(u, v, du, dv, near, keep, pu, pv):
+    """Return a particle's new velocity: FLIP share ``keep``, PIC next to stopped nodes."""
     f = 0.0 if near > 0.0 else keep
-    u_out[p] = f * (pu[p] + du) + (1.0 - f) * u
-    v_out[p] = f * (pv[p] + dv) + (1.0 - f) * v
+    return f * (pu + du) + (1.0 - f) * u, f * (pv + dv) + (1.0 - f) * v
 
 
 @numba.njit(cache=True)
@@ -230,9 +236,9 @@ def g2p_gradient(basis, vx, vy):
             for a in range(3):
                 if wx[p, a] == 0.0 and dwx[p, a] == 0.0:
                     continue
-                g00, g01, g10, g11 = gradient_terms(
-                    g00, g01, g10, g11, node_index(i0[p], j0[p], a, b, nx, ny), vx, vy,
-                    dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b])
+                i = node_index(i0[p], j0[p], a, b, nx, ny)
+                g00, g01, g10, g11 = gradient_terms(g00, g01, g10, g11, vx[i], vy[i],
+                                                    dwx[p, a] * wy[p, b], wx[p, a] * dwy[p, b])
         grad[p, 0, 0], grad[p, 0, 1], grad[p, 1, 0], grad[p, 1, 1] = g00, g01, g10, g11
     return grad
 

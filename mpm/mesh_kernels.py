@@ -15,8 +15,8 @@ import math
 import numba
 import numpy as np
 
-from mpm.forces import bed_terms, particle_bounds, particle_force
-from mpm.kernels import deposit_momentum, deposit_node, flip_gather, flip_set, gradient_terms
+from mpm.forces import NO_BOUNDS, ZERO3, bed_terms, particle_bounds, particle_force, put_bounds
+from mpm.kernels import flip_gather, flip_set, fold, gradient_terms, momentum_columns, node_columns
 
 __all__ = ["g2p_flip", "g2p_gradient", "interpolate", "p2g", "p2g_momentum",
            "particle_forces", "transfer_bounds"]
@@ -32,8 +32,14 @@ def p2g(basis, mass, u, v, affine, body_x, body_y, sxx, syy, sxy, area, volume, 
             w = N[a]
             gx, gy = dN[a, 0], dN[a, 1]
             rx, ry = rel[a, 0], rel[a, 1]
-            deposit_node(out, nodes[a] - box[1], p, w, gx, gy, rx, ry, mass, u, v, affine,
-                         body_x, body_y, sxx, syy, sxy, area, volume, ext)
+            i = nodes[a] - box[1]
+            vals = node_columns(w, gx, gy, rx, ry, mass[p], u[p], v[p], affine[0, p],
+                                affine[1, p], affine[2, p], affine[3, p], body_x[p], body_y[p],
+                                sxx[p], syy[p], sxy[p], area[p], volume[p])
+            for c in range(7):
+                hi, lo = fold(vals[c], ext[c, 0], ext[c, 1])
+                out[i, c, 0] += hi
+                out[i, c, 1] += lo
     return out
 
 
@@ -46,7 +52,13 @@ def p2g_momentum(basis, mass, u, v, affine, box, ext):
         for a in range(off[p], off[p + 1]):
             w = N[a]
             rx, ry = rel[a, 0], rel[a, 1]
-            deposit_momentum(out, nodes[a] - box[1], p, w, rx, ry, mass, u, v, affine, ext)
+            i = nodes[a] - box[1]
+            mx, my = momentum_columns(w, rx, ry, mass[p], u[p], v[p], affine[0, p], affine[1, p],
+                                      affine[2, p], affine[3, p])
+            for c, x in ((0, mx), (1, my)):
+                hi, lo = fold(x, ext[c, 0], ext[c, 1])
+                out[i, c, 0] += hi
+                out[i, c, 1] += lo
     return out
 
 
@@ -59,9 +71,10 @@ def g2p_flip(basis, vx, vy, old_x, old_y, stopped, pu, pv, keep):
     for p in range(n):
         u, v, du, dv, near = 0.0, 0.0, 0.0, 0.0, 0.0
         for a in range(off[p], off[p + 1]):
-            u, v, du, dv, near = flip_gather(u, v, du, dv, near, N[a], nodes[a], vx, vy, old_x,
-                                             old_y, stopped)
-        flip_set(p, u, v, du, dv, near, keep, pu, pv, u_out, v_out)
+            i = nodes[a]
+            u, v, du, dv, near = flip_gather(u, v, du, dv, near, N[a], vx[i], vy[i], old_x[i],
+                                             old_y[i], stopped[i])
+        u_out[p], v_out[p] = flip_set(u, v, du, dv, near, keep, pu[p], pv[p])
     return u_out, v_out
 
 
@@ -74,7 +87,8 @@ def g2p_gradient(basis, vx, vy):
     for p in range(n):
         g00, g01, g10, g11 = 0.0, 0.0, 0.0, 0.0
         for a in range(off[p], off[p + 1]):
-            g00, g01, g10, g11 = gradient_terms(g00, g01, g10, g11, nodes[a], vx, vy, dN[a, 0],
+            i = nodes[a]
+            g00, g01, g10, g11 = gradient_terms(g00, g01, g10, g11, vx[i], vy[i], dN[a, 0],
                                                 dN[a, 1])
         grad[p, 0, 0], grad[p, 0, 1], grad[p, 1, 0], grad[p, 1, 1] = g00, g01, g10, g11
     return grad
@@ -106,12 +120,16 @@ def particle_forces(basis, z, hess, still, rho, g, volume, h, u, v, sxx, syy, sx
     for p in range(n):
         gx, gy, hxx, hxy, hyy, big = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         for a in range(off[p], off[p + 1]):
+            i = nodes[a]
+            h0, h1, h2 = (hess[i, 0], hess[i, 1], hess[i, 2]) if slope_form else ZERO3
             gx, gy, hxx, hxy, hyy, big = bed_terms(gx, gy, hxx, hxy, hyy, big, N[a], dN[a, 0],
-                                                   dN[a, 1], nodes[a], z, hess, still,
-                                                   slope_form, wb)
+                                                   dN[a, 1], z[i], h0, h1, h2,
+                                                   still[i] if wb else 0.0, slope_form, wb)
         slope = max(slope, gx * gx + gy * gy)
-        speed = max(speed, particle_force(p, gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g,
-                                          volume, h, u, v, sxx, syy, sxy, out, gp))
+        gp[p], out[0, p], out[1, p], out[2, p], out[3, p], out[4, p], s = particle_force(
+            gx, gy, hxx, hxy, hyy, big, slope_form, wb, rho, g, volume[p], h[p], u[p], v[p],
+            sxx[p], syy[p], sxy[p])
+        speed = max(speed, s)
     return out, gp, math.sqrt(slope), speed
 
 
@@ -124,11 +142,14 @@ def transfer_bounds(basis, mass, u, v, forces, area, volume):
     off, nodes, N, dN, rel = basis
     b = np.zeros(15)
     b[11:] = -np.inf
+    t = NO_BOUNDS
     for p in range(off.size - 1):
-        particle_bounds(b, p, mass, u, v, forces, area, volume)
+        t = particle_bounds(t, mass[p], u[p], v[p], forces[0, p], forces[1, p], forces[2, p],
+                            forces[3, p], forces[4, p], area[p], volume[p])
         for a in range(off[p], off[p + 1]):
             b[8] = max(b[8], abs(dN[a, 0]), abs(dN[a, 1]))
             b[13] = max(b[13], -float(nodes[a]))
             b[14] = max(b[14], float(nodes[a]))
         b[11], b[12] = max(b[11], 0.0), max(b[12], 0.0)
+    put_bounds(b, t)
     return b

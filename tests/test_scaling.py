@@ -26,6 +26,16 @@ def test_the_speed_up_is_the_ratio_of_the_medians():
     assert s["same"] and s["result"]["steps"] == 900
     table = scaling.format_table({"mpm": s}, 2)
     assert "**1.57×**" in table and "1.30–2.50" in table and "| yes |" in table
+    assert "| – |" in table  # summaries without an end time
+
+
+def test_the_table_says_how_the_runs_ended():
+    rest = _summary(14.0) | {"t_end": 232.238, "at_rest": True}
+    capped = _summary(9.0) | {"t_end": 600.0, "at_rest": False}
+    s = scaling.summarize([{1: rest, 2: rest}])
+    assert "| 232.2 (at rest) |" in scaling.format_table({"mpm": s}, 2)
+    s = scaling.summarize([{1: capped, 2: capped}])
+    assert "| 600.0 (end or max) |" in scaling.format_table({"tg2": s}, 2)
 
 
 @pytest.mark.parametrize("key, value", [("steps", 901), ("runout_length", 1500.5),

@@ -38,6 +38,8 @@ HELP = "wall time at 1 and R ranks in ABBA rounds, the speed-up by medians (issu
 BEGIN, END = "<!-- scaling -->", "<!-- /scaling -->"
 #: Summary keys that must be the same in every run of a method, whatever its rank count.
 SAME = ("runout_length", "affected_area", "steps")
+#: How the run ended, reported beside the results (the first run's).
+ENDING = ("t_end", "at_rest")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -74,18 +76,27 @@ def summarize(runs: list[dict[int, dict[str, Any]]]) -> dict[str, Any]:
     walls = {n: [float(r[n]["wall_time"]) for r in runs] for n in counts}
     medians = {n: statistics.median(w) for n, w in walls.items()}
     many = counts[-1]
-    first = {k: runs[0][counts[0]][k] for k in SAME}
+    first = {k: runs[0][counts[0]][k] for k in SAME + ENDING if k in runs[0][counts[0]]}
     same = all(s[k] == first[k] for r in runs for s in r.values() for k in SAME)
     return {"walls": walls, "medians": medians, "ratio": medians[1] / medians[many],
             "round_ratios": [w1 / wr for w1, wr in zip(walls[1], walls[many], strict=True)],
             "same": same, "result": first}
 
 
+def _ending(result: dict[str, Any]) -> str:
+    """Return the simulated time and how the run ended (at rest, or at its end or ``max``)."""
+    if "t_end" not in result:
+        return "–"
+    how = "at rest" if result.get("at_rest") else "end or max"
+    return f"{float(result['t_end']):.1f} ({how})"
+
+
 def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
     """Markdown table: one row per method (the :func:`summarize` of its rounds)."""
     lines = [f"| method | 1 rank [s], per round | {ranks} ranks [s], per round | medians [s] | "
-             "speed-up by medians | per round | run-out [m] | area [m²] | steps | same result |",
-             "|---|---|---|---|---:|---|---:|---:|---:|---|"]
+             "speed-up by medians | per round | run-out [m] | area [m²] | steps | "
+             "simulated [s] | same result |",
+             "|---|---|---|---|---:|---|---:|---:|---:|---|---|"]
     for method, s in rows.items():
         w1, wr = (", ".join(f"{t:.2f}" for t in s["walls"][n]) for n in (1, ranks))
         rr = s["round_ratios"]
@@ -94,7 +105,7 @@ def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
             f"| {method} | {w1} | {wr} | {s['medians'][1]:.2f} / {s['medians'][ranks]:.2f} | "
             f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} | "
             f"{res['runout_length']:.1f} | {res['affected_area']:.0f} | {res['steps']} | "
-            f"{'yes' if s['same'] else 'NO'} |")
+            f"{_ending(res)} | {'yes' if s['same'] else 'NO'} |")
     return "\n".join(lines)
 
 
