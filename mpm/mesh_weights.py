@@ -235,7 +235,6 @@ def _gradient_sum(geo, m, c, w0, wa, wb, wab):
             + (g4 * ga - g2 * be) * wb + (g4 * de - g4 * be) * wab)
 
 
-@numba.njit(cache=True)
 def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
                  rel):
     """Weights of the particle domains: GIMP on a quadrilateral mesh.
@@ -262,17 +261,25 @@ def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
         The number of entries used, or -1 if the buffers are too short (call again with
         longer ones).
     """
+    w = 4 * MAX_CELLS
+    scratch = (np.empty((1, w), dtype=np.int64), np.zeros((1, w)), np.zeros((1, w, 2)),
+               np.zeros((1, w, 2)), np.empty((MAX_CELLS, 8)),
+               np.empty(16), np.empty(16), np.empty(16), np.empty(16), np.empty(4), np.empty(4),
+               np.empty(64), np.empty(64), np.empty(64), np.empty(MAX_VISITED, dtype=np.int64),
+               np.empty((2, 4)), np.empty((2, 4)), np.empty(2, dtype=np.int64),
+               np.zeros(4, dtype=np.bool_))
+    return _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S,
+                        dS, rel, *scratch)
+
+
+def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
+                 rel, snodes, sN, sdN, srel, mom, w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10,
+                 w11, w12, w13):
+    """Run the particles' loop of :func:`domain_basis` on given scratch (it allocates nothing)."""
     n = cell.size
     cap = nodes.size
     offsets[0] = 0
-    w = 4 * MAX_CELLS
-    snodes = np.empty((1, w), dtype=np.int64)
-    sN, sdN, srel = np.zeros((1, w)), np.zeros((1, w, 2)), np.zeros((1, w, 2))
-    mom = np.empty((MAX_CELLS, 8))
-    work = (np.empty(16), np.empty(16), np.empty(16), np.empty(16), np.empty(4), np.empty(4),
-            np.empty(64), np.empty(64), np.empty(64),
-            np.empty(MAX_VISITED, dtype=np.int64), np.empty((2, 4)), np.empty((2, 4)),
-            np.empty(2, dtype=np.int64), np.zeros(4, dtype=np.bool_))
+    work = (w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11, w12, w13)
     for p in range(n):
         k = cell[p]
         px, py = map_point(geo, k, xi[p], eta[p])
@@ -286,6 +293,25 @@ def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
         offsets[p + 1] = start + _append_unique(start, used, snodes, sN, sdN, srel, nodes, S,
                                                 dS, rel)
     return offsets[n]
+
+
+def _without_refcounts(func):
+    """Compile ``func`` without numba's reference counting (``_nrt=False``), or with it.
+
+    The loop hands arrays to inlined helpers on every particle and cell it visits, and numba
+    keeps an increment and a decrement of each array's count around each such call (340
+    indirect calls in the compiled loop): measured on the gmsh disc's hemisphere (7 666
+    particles), 26.4 ms with them, 21.9 ms with the scratch allocated outside, 11.1 ms without
+    reference counts, the same bits (session 34). A loop that allocates nothing needs no
+    counts. ``_nrt`` is numba's internal option; a numba without it gets the counted loop.
+    """
+    try:
+        return numba.njit(cache=True, _nrt=False)(func)
+    except (KeyError, TypeError, ValueError):  # pragma: no cover - a numba without the option
+        return numba.njit(cache=True)(func)
+
+
+_domain_loop = _without_refcounts(_domain_loop)
 
 
 @numba.njit(cache=True, inline="always")
