@@ -34,7 +34,7 @@ from fem_runout.quadmesh import EDGE_CORNERS, KIND_CODES
 from mpm.grid import Basis
 from mpm.mesh_clip import cost_estimate, seed_quads
 from mpm.mesh_locate import WALK_EDGES, jacobian_det, walk
-from mpm.mesh_weights import domain_basis, point_basis
+from mpm.mesh_weights import domain_basis, domain_scratch, point_basis
 
 __all__ = ["MeshBasis", "MeshParticleGrid", "crossing_lengths"]
 
@@ -126,6 +126,7 @@ class MeshParticleGrid:
         # the domain weights' buffers, kept between steps (:meth:`particle_basis`)
         self._offsets = np.empty(1, dtype=np.int64)
         self._buffers = (np.empty(0, np.int64), np.empty(0), np.empty((0, 2)), np.empty((0, 2)))
+        self._scratch = domain_scratch()  # the weights loop's, reused every step
 
     def _cells(self, disc: Discretization) -> None:
         """Global cells (sorted by centre), canonical corners, owners and the bilinear maps."""
@@ -283,7 +284,8 @@ class MeshParticleGrid:
             self._offsets = np.empty(2 * n + 1, dtype=np.int64)
         while True:
             used = domain_basis(self.geo, self.origin, self.corners, self.neighbour,
-                                p.cell, p.xi, p.eta, quad, self._offsets, *self._buffers)
+                                p.cell, p.xi, p.eta, quad, self._offsets, *self._buffers,
+                                scratch=self._scratch)
             if used >= 0:
                 break
             size = 2 * max(self._buffers[0].size, 8 * n)

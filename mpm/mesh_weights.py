@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numba.core.cpu import CPUTargetOptions
 
 from mpm.mesh_clip import (
     MAX_VISITED,
@@ -22,7 +23,7 @@ from mpm.mesh_clip import (
 )
 from mpm.mesh_locate import map_point, tangents
 
-__all__ = ["MAX_CELLS", "domain_basis", "point_basis"]
+__all__ = ["MAX_CELLS", "domain_basis", "domain_scratch", "point_basis"]
 
 #: Most cells a particle domain reaches (4 around a regular vertex; up to 6 at a vertex
 #: with 5 or 6 cells; more for a domain stretched along the flow before it is split).
@@ -236,7 +237,7 @@ def _gradient_sum(geo, m, c, w0, wa, wb, wab):
 
 
 def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
-                 rel):
+                 rel, scratch=None):
     """Weights of the particle domains: GIMP on a quadrilateral mesh.
 
     A particle's domain is the convex quadrilateral ``x_p + quad[p]`` (corner offsets
@@ -257,19 +258,32 @@ def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
     than the computation): particle ``p``'s entries are ``offsets[p] .. offsets[p + 1] - 1``,
     one per node its domain reaches (the corners of at most :data:`MAX_CELLS` cells).
 
+    ``scratch``: :func:`domain_scratch`, kept by the caller between calls (a new one if None).
+
     Returns:
         The number of entries used, or -1 if the buffers are too short (call again with
         longer ones).
     """
-    w = 4 * MAX_CELLS
-    scratch = (np.empty((1, w), dtype=np.int64), np.zeros((1, w)), np.zeros((1, w, 2)),
-               np.zeros((1, w, 2)), np.empty((MAX_CELLS, 8)),
-               np.empty(16), np.empty(16), np.empty(16), np.empty(16), np.empty(4), np.empty(4),
-               np.empty(64), np.empty(64), np.empty(64), np.empty(MAX_VISITED, dtype=np.int64),
-               np.empty((2, 4)), np.empty((2, 4)), np.empty(2, dtype=np.int64),
-               np.zeros(4, dtype=np.bool_))
+    if scratch is None:
+        scratch = domain_scratch()
     return _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S,
                         dS, rel, *scratch)
+
+
+def domain_scratch() -> tuple[np.ndarray, ...]:
+    """Return the scratch arrays of :func:`domain_basis`'s loop, reusable from call to call.
+
+    The loop writes every scratch entry before it reads it (zeroing the first four weights of
+    each particle itself), so what a previous call left there changes nothing (tested with
+    scratch full of garbage).
+    """
+    w = 4 * MAX_CELLS
+    return (np.empty((1, w), dtype=np.int64), np.zeros((1, w)), np.zeros((1, w, 2)),
+            np.zeros((1, w, 2)), np.empty((MAX_CELLS, 8)),
+            np.empty(16), np.empty(16), np.empty(16), np.empty(16), np.empty(4), np.empty(4),
+            np.empty(64), np.empty(64), np.empty(64), np.empty(MAX_VISITED, dtype=np.int64),
+            np.empty((2, 4)), np.empty((2, 4)), np.empty(2, dtype=np.int64),
+            np.zeros(4, dtype=np.bool_))
 
 
 def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
@@ -296,19 +310,19 @@ def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
 
 
 def _without_refcounts(func):
-    """Compile ``func`` without numba's reference counting (``_nrt=False``), or with it.
+    """Compile ``func`` without numba's reference counting (``_nrt=False``) where numba has it.
 
     The loop hands arrays to inlined helpers on every particle and cell it visits, and numba
     keeps an increment and a decrement of each array's count around each such call (340
     indirect calls in the compiled loop): measured on the gmsh disc's hemisphere (7 666
     particles), 26.4 ms with them, 21.9 ms with the scratch allocated outside, 11.1 ms without
     reference counts, the same bits (session 34). A loop that allocates nothing needs no
-    counts. ``_nrt`` is numba's internal option; a numba without it gets the counted loop.
+    counts. ``_nrt`` is numba's internal option (an unknown option fails only at the first
+    call, so its presence is checked here); a numba without it gets the counted loop.
     """
-    try:
+    if hasattr(CPUTargetOptions, "_nrt"):
         return numba.njit(cache=True, _nrt=False)(func)
-    except (KeyError, TypeError, ValueError):  # pragma: no cover - a numba without the option
-        return numba.njit(cache=True)(func)
+    return numba.njit(cache=True)(func)
 
 
 _domain_loop = _without_refcounts(_domain_loop)

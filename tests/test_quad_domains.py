@@ -19,6 +19,7 @@ from fem_runout.references import thacker as ref
 from mpm.mesh_clip import clip, convex_parts, polygon_area
 from mpm.mesh_grid import MeshParticleGrid, crossing_lengths
 from mpm.mesh_locate import inverse_anchor, invert_near, map_point
+from mpm.mesh_weights import domain_basis, domain_scratch
 from mpm.particles import Particles
 from mpm.quad_split import RESPLIT, QuadSplitter
 from tests.quad_helpers import distorted_rectangle
@@ -148,6 +149,37 @@ def test_cost_estimate_follows_the_cells_a_moved_domain_reaches():
     assert (entries[cost == 1] == 4).all()
     means = [entries[cost == c].mean() for c in (1, 2, 3)]
     assert means[0] < means[1] < means[2], means  # more cells reached, more cost
+
+
+def test_the_weights_do_not_depend_on_what_the_scratch_held():
+    """The weights' loop reuses its scratch from step to step (kept by the grid): moved domains
+    across a jittered mesh give the same bits with fresh scratch and with scratch full of
+    garbage."""
+    g = _grid(0.3)
+    rng = np.random.default_rng(5)
+    cell = np.repeat(np.arange(g.n_cells), 4)
+    xi0, eta0 = np.tile([0.25, 0.75, 0.25, 0.75], g.n_cells), np.tile([0.25, 0.25, 0.75, 0.75],
+                                                                      g.n_cells)
+    xi, eta, _, quad = g.seed_domains(cell, xi0, eta0, 2)
+    step = rng.uniform(-0.4, 0.4, (cell.size, 2))
+    cell, xi, eta, _, _ = g.displace(cell, xi, eta, step[:, 0], step[:, 1])
+    quad = quad * rng.uniform(0.8, 1.6, (quad.shape[0], 1))  # some domains reach further
+
+    def weights(scratch):
+        size = 40 * cell.size
+        out = (np.empty(cell.size + 1, np.int64), np.empty(size, np.int64), np.empty(size),
+               np.empty((size, 2)), np.empty((size, 2)))
+        args = (g.geo, g.origin, g.corners, g.neighbour, cell, xi, eta, quad, *out)
+        used = domain_basis(*args, scratch=scratch)
+        return [out[0]] + [a[:used] for a in out[1:]]
+
+    fresh = weights(None)
+    junk = domain_scratch()
+    for a in junk:
+        a[...] = rng.integers(0, 2, a.shape) if a.dtype != float else rng.normal(size=a.shape)
+    for got in (weights(junk), weights(junk)):
+        assert all(np.array_equal(a, b) for a, b in zip(fresh, got, strict=True))
+    assert np.diff(fresh[0]).max() > 4  # domains across sides and vertices were visited
 
 
 def test_quad_split_conserves_volume_and_tiles_the_parent():
