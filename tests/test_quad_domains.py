@@ -127,19 +127,24 @@ def test_seeded_domains_tile_the_cells_and_sit_at_their_centroids():
     assert abs(np.sum(S * area[rows]) - cell_area.sum()) <= 1e-12 * cell_area.sum()
 
 
+def _moved_domains(g: MeshParticleGrid, rng, reach: float) -> tuple[np.ndarray, ...]:
+    """Four seeded domains per cell, moved by up to ``reach`` cells: ``(cell, ξ, η, A, quad)``."""
+    cell = np.repeat(np.arange(g.n_cells), 4)
+    xi0, eta0 = np.tile([0.25, 0.75, 0.25, 0.75], g.n_cells), np.tile([0.25, 0.25, 0.75, 0.75],
+                                                                      g.n_cells)
+    xi, eta, area, quad = g.seed_domains(cell, xi0, eta0, 2)
+    step = rng.uniform(-reach, reach, (cell.size, 2))
+    cell, xi, eta, _, _ = g.displace(cell, xi, eta, step[:, 0], step[:, 1])
+    return cell, xi, eta, area, quad
+
+
 def test_cost_estimate_follows_the_cells_a_moved_domain_reaches():
     """The load balance's per-particle cost on a gmsh mesh (1 inside the cell, 2 across a
     side, 3 around a vertex) against the entries the weights give: a domain called inside has
     exactly its cell's four nodes, and the entries grow with the estimate (on avaKot's
     corridor it named 6 entries for a side and 8-9 for a vertex for 94 % of the particles)."""
     g = _grid(0.3)
-    rng = np.random.default_rng(3)
-    cell = np.repeat(np.arange(g.n_cells), 4)
-    xi0, eta0 = np.tile([0.25, 0.75, 0.25, 0.75], g.n_cells), np.tile([0.25, 0.25, 0.75, 0.75],
-                                                                      g.n_cells)
-    xi, eta, area, quad = g.seed_domains(cell, xi0, eta0, 2)
-    step = rng.uniform(-0.3, 0.3, (cell.size, 2))
-    cell, xi, eta, _, _ = g.displace(cell, xi, eta, step[:, 0], step[:, 1])
+    cell, xi, eta, area, quad = _moved_domains(g, np.random.default_rng(3), 0.3)
     p = Particles(xi, eta, 0 * xi, 0 * xi, area, np.ones_like(xi), 0 * xi, 0 * xi, 0 * xi,
                   0 * xi, 0 * xi, cell=cell, id=np.arange(cell.size))
     p.set_quad(quad)
@@ -157,12 +162,7 @@ def test_the_weights_do_not_depend_on_what_the_scratch_held():
     garbage."""
     g = _grid(0.3)
     rng = np.random.default_rng(5)
-    cell = np.repeat(np.arange(g.n_cells), 4)
-    xi0, eta0 = np.tile([0.25, 0.75, 0.25, 0.75], g.n_cells), np.tile([0.25, 0.25, 0.75, 0.75],
-                                                                      g.n_cells)
-    xi, eta, _, quad = g.seed_domains(cell, xi0, eta0, 2)
-    step = rng.uniform(-0.4, 0.4, (cell.size, 2))
-    cell, xi, eta, _, _ = g.displace(cell, xi, eta, step[:, 0], step[:, 1])
+    cell, xi, eta, _, quad = _moved_domains(g, rng, 0.4)
     quad = quad * rng.uniform(0.8, 1.6, (quad.shape[0], 1))  # some domains reach further
 
     def weights(scratch):
