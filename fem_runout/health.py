@@ -8,11 +8,27 @@ depth, else the largest speed, with its coordinates.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from fem_runout.callbacks import flow_index
 
-__all__ = ["locate", "reduce_flag"]
+__all__ = ["locate", "reduce_flag", "state_flag"]
+
+
+@numba.njit(cache=True)
+def state_flag(h, hu, hv, n):
+    """Health code of the first ``n`` nodes: 2 non-finite, 1 negative depth, 0 good.
+
+    One pass over ``h, hu, hv`` without a copy (a step's check).
+    """
+    negative = False
+    for i in range(n):
+        a, b, c = h[i], hu[i], hv[i]
+        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
+            return 2
+        negative = negative or a < 0.0
+    return 1 if negative else 0
 
 
 def reduce_flag(comm, flag: int, *also_max: np.ndarray | None) -> int:

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from fem_runout.tg2 import fct
+from fem_runout.health import state_flag
+from fem_runout.tg2 import fct, limiter
 
 
 def _strip(n_cells: int) -> np.ndarray:
@@ -102,3 +103,74 @@ def test_ratios_exact_values():
     )
     np.testing.assert_allclose(rp, [0.5, 1.0, 1.0])
     np.testing.assert_allclose(rm, [0.25, 0.25, 1.0])
+
+
+def _bits(a):
+    return np.ascontiguousarray(a).view(np.int64)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fused_pair_split_has_the_bits_of_the_per_variable_passes(seed):
+    """split_flux_sums (one pass for h, hu, hv) = split_pairs + flux_sums per variable, bit for
+    bit (signed zeros included), on contributions with zeros, -0.0 and ties."""
+    rng = np.random.default_rng(seed)
+    n = 4000
+    aec = rng.normal(size=(n, 4, 3)) * (rng.random((n, 4, 3)) < 0.7)
+    aec[::7] = 0.0
+    aec[::11, 0, 1] = -0.0
+    aec[::13, 2] = aec[::13, 1]  # equal contributions: zero pair fluxes
+    flux, source, per = np.empty((3, n, 6)), np.empty((3, n)), np.empty((n, 4, 6))
+    for c in range(3):
+        fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
+        fct.flux_sums(flux[c], source[c], per[:, :, 2 * c:2 * c + 2])
+    fused = np.empty((3, n, 6)), np.empty((3, n)), np.empty((n, 4, 6))
+    fct.split_flux_sums(aec, *fused)
+    for ref, got in zip((flux, source, per), fused, strict=True):
+        assert np.array_equal(_bits(ref), _bits(got))
+    total = per[:, :, 0::2].sum(axis=1) + per[:, :, 1::2].sum(axis=1)  # fluxes cancel
+    assert np.abs(total - 4.0 * source.T).max() < 1e-12
+
+
+def test_bounds_from_extrema_follow_the_array_formulas():
+    """The per-node kernel gives the formulas of Limiter.finish_bounds, bit for bit: momentum
+    slack, shoreline slack ramped by the patch's shallowest depth, h >= 0, and ±inf extrema
+    (nodes without active cells) leave the low-order state as both bounds."""
+    rng = np.random.default_rng(3)
+    n, thin, ms, ss = 500, 1e-3, limiter.MOMENTUM_SLACK, limiter.SHORE_SLACK
+    q_low = rng.normal(size=(n, 3))
+    q_low[:, 0] = np.abs(q_low[:, 0]) * (rng.random(n) < 0.8)
+    hi = q_low.T + rng.random((3, n))
+    lo = q_low.T - rng.random((3, n))
+    near = np.abs(rng.normal(size=n)) * 2e-3
+    ext = np.vstack([hi, -lo, near + 1.0, -near, rng.random(n)])
+    ext[:8, :20] = -np.inf  # no active cell around these nodes
+    upper, lower = np.empty((n, 3)), np.empty((n, 3))
+    limiter.bounds_from_extrema(ext.copy(), q_low, thin, ms, ss, upper, lower)
+    h_hi, h_lo, nr = ext[0:3].copy(), -ext[3:6], -ext[7]
+    with np.errstate(invalid="ignore"):
+        slack = ms * (h_hi[1:] - h_lo[1:])
+        h_hi[1:] += slack
+        h_lo[1:] -= slack
+        shore = np.clip(1.0 - nr / thin, 0.0, 1.0)
+        spread = np.where(h_hi[0] > h_lo[0], h_hi[0] - h_lo[0], 0.0)
+    h_hi[0] += ss * shore * np.minimum(spread, np.maximum(q_low[:, 0], 0.0))
+    h_lo[0] = np.maximum(h_lo[0], 0.0)
+    assert np.array_equal(upper, np.maximum(h_hi.T, q_low))
+    assert np.array_equal(lower, np.minimum(h_lo.T, q_low))
+    assert np.array_equal(upper[:20], q_low[:20]) and np.array_equal(lower[:20], q_low[:20])
+    assert (upper >= q_low).all() and (lower <= q_low).all() and (lower[:, 0] <= 0.0).any()
+
+
+def test_state_flag_codes():
+    """0 for a good state, 1 for a negative depth, 2 for any non-finite value (it wins over a
+    negative depth before it); only the first n nodes count."""
+    h, hu, hv = np.ones(10), np.zeros(10), np.zeros(10)
+    assert state_flag(h, hu, hv, 10) == 0
+    h[3] = -1e-300
+    assert state_flag(h, hu, hv, 10) == 1
+    hv[7] = np.inf
+    assert state_flag(h, hu, hv, 10) == 2
+    assert state_flag(h, hu, hv, 7) == 1
+    h[3], hv[7], hu[9] = 1.0, 0.0, np.nan
+    assert state_flag(h, hu, hv, 9) == 0
+    assert state_flag(h, hu, hv, 10) == 2

@@ -67,7 +67,9 @@ def test_sensor_is_zero_on_linear_data_and_one_at_an_extremum():
     for h, expected in ((2.0 + 0.3 * x.ravel() - 0.1 * y.ravel(), 0.0),
                         (np.where(np.arange(9) == 4, 1.0, 0.0), 1.0)):
         buf = np.zeros((4, 4, 5))
-        sensor_sums(cells, h, buf)
+        high = np.arange(48.0).reshape(4, 4, 3)
+        sensor_sums(cells, h, high, buf)
+        assert np.array_equal(buf[:, :, :3], high)
         s1 = np.zeros(9)
         s2 = np.zeros(9)
         np.add.at(s1, cells.ravel(), buf[:, :, 3].ravel())

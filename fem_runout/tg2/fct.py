@@ -80,6 +80,47 @@ def flux_sums(flux, source, out):
                 out[k, b, 0] -= f
 
 
+
+@numba.njit(cache=True)
+def split_flux_sums(aec, flux, source, out):
+    """:func:`split_pairs` and :func:`flux_sums` of (h, hu, hv) in one pass, the same bits.
+
+    Args:
+        aec: (n, 4, 3) element contributions.
+        flux: (3, n, 6) pair fluxes (output).
+        source: (3, n) per-node source of each cell (output).
+        out: (n, 4, 6) ``P⁺, P⁻`` of each variable at ``2c, 2c + 1`` (output).
+    """
+    for k in range(aec.shape[0]):
+        for c in range(3):
+            a0, a1, a2, a3 = aec[k, 0, c], aec[k, 1, c], aec[k, 2, c], aec[k, 3, c]
+            mu = 0.25 * (a0 + a1 + a2 + a3)
+            source[c, k] = mu
+            pos, neg = (mu, 0.0) if mu > 0.0 else (0.0, mu)
+            p0, p1, p2, p3 = pos, pos, pos, pos
+            m0, m1, m2, m3 = neg, neg, neg, neg
+            f01, f02, f03 = 0.25 * (a0 - a1), 0.25 * (a0 - a2), 0.25 * (a0 - a3)
+            f12, f13, f23 = 0.25 * (a1 - a2), 0.25 * (a1 - a3), 0.25 * (a2 - a3)
+            flux[c, k, 0], flux[c, k, 1], flux[c, k, 2] = f01, f02, f03
+            flux[c, k, 3], flux[c, k, 4], flux[c, k, 5] = f12, f13, f23
+            # the pairs in the order of PAIRS, as flux_sums adds them
+            p0, m1 = (p0 + f01, m1 - f01) if f01 > 0.0 else (p0, m1)
+            m0, p1 = (m0, p1) if f01 > 0.0 else (m0 + f01, p1 - f01)
+            p0, m2 = (p0 + f02, m2 - f02) if f02 > 0.0 else (p0, m2)
+            m0, p2 = (m0, p2) if f02 > 0.0 else (m0 + f02, p2 - f02)
+            p0, m3 = (p0 + f03, m3 - f03) if f03 > 0.0 else (p0, m3)
+            m0, p3 = (m0, p3) if f03 > 0.0 else (m0 + f03, p3 - f03)
+            p1, m2 = (p1 + f12, m2 - f12) if f12 > 0.0 else (p1, m2)
+            m1, p2 = (m1, p2) if f12 > 0.0 else (m1 + f12, p2 - f12)
+            p1, m3 = (p1 + f13, m3 - f13) if f13 > 0.0 else (p1, m3)
+            m1, p3 = (m1, p3) if f13 > 0.0 else (m1 + f13, p3 - f13)
+            p2, m3 = (p2 + f23, m3 - f23) if f23 > 0.0 else (p2, m3)
+            m2, p3 = (m2, p3) if f23 > 0.0 else (m2 + f23, p3 - f23)
+            out[k, 0, 2 * c], out[k, 0, 2 * c + 1] = p0, m0
+            out[k, 1, 2 * c], out[k, 1, 2 * c + 1] = p1, m1
+            out[k, 2, 2 * c], out[k, 2, 2 * c + 1] = p2, m2
+            out[k, 3, 2 * c], out[k, 3, 2 * c + 1] = p3, m3
+
 @numba.njit(cache=True)
 def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
     """Limited fluxes ``f*`` and sources per cell and node (``out[K, a]``, overwritten).
@@ -307,8 +348,6 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
         cap: (n_nodes,) cap of the momentum fluxes.
         out: (n, 4, 3) output.
     """
-    alpha = np.empty(3)
-    sig = np.empty(3)
     for k in range(cells.shape[0]):
         for c in range(3):
             mu = source[c, k]
@@ -321,23 +360,30 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
             b = PAIRS[p, 1]
             i = cells[k, a]
             j = cells[k, b]
-            top = 0.0
-            for c in range(3):
-                f = flux[c, k, p]
-                if f > 0.0:
-                    alpha[c] = min(rplus[c, i], rminus[c, j])
-                else:
-                    alpha[c] = min(rminus[c, i], rplus[c, j])
-                sig[c] = abs(f) * (max(speed[i], speed[j]) if c == 0 else 1.0)
-                top = max(top, sig[c])
+            f0, f1, f2 = flux[0, k, p], flux[1, k, p], flux[2, k, p]
+            a0 = _own_factor(f0, rplus[0, i], rminus[0, i], rplus[0, j], rminus[0, j])
+            a1 = _own_factor(f1, rplus[1, i], rminus[1, i], rplus[1, j], rminus[1, j])
+            a2 = _own_factor(f2, rplus[2, i], rminus[2, i], rplus[2, j], rminus[2, j])
+            s0, s1, s2 = abs(f0) * max(speed[i], speed[j]), abs(f1), abs(f2)
+            top = max(max(max(0.0, s0), s1), s2)
             common = 1.0
             if top > 0.0:
-                for c in range(3):
-                    common = min(common, 1.0 - (1.0 - alpha[c]) * (sig[c] / top))
-            for c in range(3):
-                factor = min(common, alpha[c])
-                if c > 0:
-                    factor = min(factor, min(cap[i], cap[j]))
-                f = flux[c, k, p] * factor
-                out[k, a, c] += f
-                out[k, b, c] -= f
+                common = min(common, 1.0 - (1.0 - a0) * (s0 / top))
+                common = min(common, 1.0 - (1.0 - a1) * (s1 / top))
+                common = min(common, 1.0 - (1.0 - a2) * (s2 / top))
+            c_ij = min(cap[i], cap[j])
+            g0 = f0 * min(common, a0)
+            g1 = f1 * min(min(common, a1), c_ij)
+            g2 = f2 * min(min(common, a2), c_ij)
+            out[k, a, 0] += g0
+            out[k, b, 0] -= g0
+            out[k, a, 1] += g1
+            out[k, b, 1] -= g1
+            out[k, a, 2] += g2
+            out[k, b, 2] -= g2
+
+
+@numba.njit(cache=True, inline="always")
+def _own_factor(f, rplus_i, rminus_i, rplus_j, rminus_j):
+    """Zalesak's factor of a pair flux ``f`` from ``i`` to ``j`` (scalars: no array counts)."""
+    return min(rplus_i, rminus_j) if f > 0.0 else min(rminus_i, rplus_j)

@@ -31,6 +31,7 @@ near dry areas), kept in the seed's predictor–corrector setting (eqs. 13–15)
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from fem_runout.active import ActiveSet
@@ -131,9 +132,7 @@ class Limiter:
         n = region.owned.size
         flux, source = np.empty((3, n, 6)), np.empty((3, n))
         per_cell = arrays["per_cell6"]  # (P⁺, P⁻) of h, hu, hv: one exchange for the three
-        for c in range(3):
-            fct.split_pairs(np.ascontiguousarray(aec[:, :, c]), flux[c], source[c])
-            fct.flux_sums(flux[c], source[c], per_cell[:, :, 2 * c: 2 * c + 2])
+        fct.split_flux_sums(np.ascontiguousarray(aec), flux, source, per_cell)
         sums = region.cell_sum(per_cell)
         nn = m.shape[0]
         rplus, rminus, soft = np.empty((3, nn)), np.empty((3, nn)), np.empty(nn)
@@ -186,17 +185,9 @@ class Limiter:
         maximum of the low-order depth (``near``, ``far``), the former relaxing the depth's
         upper bound at the shoreline (:data:`SHORE_SLACK`).
         """
-        hi, lo = ext[0:3], -ext[3:6]
-        far, near = ext[6], -ext[7]
-        slack = MOMENTUM_SLACK * (hi[1:] - lo[1:])
-        hi[1:] += slack
-        lo[1:] -= slack
-        shore = np.clip(1.0 - near / self.thin_depth, 0.0, 1.0)
-        with np.errstate(invalid="ignore"):  # ±inf on nodes without active cells: no slack
-            spread = np.where(hi[0] > lo[0], hi[0] - lo[0], 0.0)
-        hi[0] += SHORE_SLACK * shore * np.minimum(spread, np.maximum(q_low[:, 0], 0.0))
-        lo[0] = np.maximum(lo[0], 0.0)
-        return np.maximum(hi.T, q_low), np.minimum(lo.T, q_low), near, far
+        upper, lower = np.empty_like(q_low), np.empty_like(q_low)
+        bounds_from_extrema(ext, q_low, self.thin_depth, MOMENTUM_SLACK, SHORE_SLACK, upper, lower)
+        return upper, lower, -ext[7], ext[6]
 
     def thin_cap(self, near: np.ndarray, far: np.ndarray) -> np.ndarray:
         """Thin-layer ramp ``θ_i = clip(min_patch h^L / (1e3 κ + THIN_RATIO max_patch h^L))``.
@@ -210,3 +201,18 @@ class Limiter:
         than 1e3 κ". ``near``, ``far``: the patch extrema of :meth:`finish_bounds`.
         """
         return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)
+
+
+@numba.njit(cache=True)
+def bounds_from_extrema(ext, q_low, thin_depth, momentum_slack, shore_slack, upper, lower):
+    """:meth:`Limiter.finish_bounds` per node in one pass (the array formulas' operations)."""
+    for i in range(q_low.shape[0]):
+        shore = min(max(1.0 - (-ext[7, i]) / thin_depth, 0.0), 1.0)
+        hi, lo = ext[0, i], -ext[3, i]
+        spread = hi - lo if hi > lo else 0.0  # ±inf where no active cell: no slack
+        hi = hi + (shore_slack * shore) * min(spread, max(q_low[i, 0], 0.0))
+        upper[i, 0], lower[i, 0] = max(hi, q_low[i, 0]), min(max(lo, 0.0), q_low[i, 0])
+        for c in (1, 2):
+            hi, lo = ext[c, i], -ext[3 + c, i]
+            slack = momentum_slack * (hi - lo)
+            upper[i, c], lower[i, c] = max(hi + slack, q_low[i, c]), min(lo - slack, q_low[i, c])

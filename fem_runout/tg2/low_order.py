@@ -128,6 +128,11 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
             out[k, a, 0] = 0.0
             out[k, a, 1] = -g[i] * h[i] * p1
             out[k, a, 2] = -g[i] * h[i] * p2
+        # the nodes' wave speeds, once per cell (the pairs below take them: the same bits)
+        c0 = np.sqrt(g[nodes[0]] * max(h[nodes[0]], 0.0))
+        c1 = np.sqrt(g[nodes[1]] * max(h[nodes[1]], 0.0))
+        c2 = np.sqrt(g[nodes[2]] * max(h[nodes[2]], 0.0))
+        c3 = np.sqrt(g[nodes[3]] * max(h[nodes[3]], 0.0))
         for p in range(6):
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
@@ -141,8 +146,8 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
             nb = np.sqrt(bx * bx + by * by)
             bu_i = bx * ux[i] + by * uy[i]
             bu_j = bx * ux[j] + by * uy[j]
-            c_i = np.sqrt(g[i] * max(h[i], 0.0))
-            c_j = np.sqrt(g[j] * max(h[j], 0.0))
+            c_i = c0 if a == 0 else (c1 if a == 1 else c2)  # a < b in PAIRS
+            c_j = c1 if b == 1 else (c2 if b == 2 else c3)
             d = max(abs(bu_i) + c_i * nb, abs(bu_j) + c_j * nb)
             fm = -(hs_ij * bu_i + hs_ji * bu_j) + d * (hs_ji - hs_ij)
             fx = -bu_i * hs_ij * ux[i] - bu_j * hs_ji * ux[j] + d * (hs_ji * ux[j] - hs_ij * ux[i])

@@ -45,10 +45,14 @@ SENSOR_DEPTH = 1e3
 
 
 @numba.njit(cache=True)
-def sensor_sums(cells, h, out):
-    """``out[K, a, 3] = Σ_b (h_b − h_a)``, ``out[K, a, 4] = Σ_b |h_b − h_a|`` over the cell."""
+def sensor_sums(cells, h, high, out):
+    """``out[K, a, 3] = Σ_b (h_b − h_a)``, ``out[K, a, 4] = Σ_b |h_b − h_a|`` over the cell.
+
+    ``out[K, a, :3]`` gets ``high[K, a]`` (the contributions summed in the same exchange).
+    """
     for k in range(cells.shape[0]):
         for a in range(4):
+            out[k, a, 0], out[k, a, 1], out[k, a, 2] = high[k, a, 0], high[k, a, 1], high[k, a, 2]
             ha = h[cells[k, a]]
             s1 = 0.0
             s2 = 0.0
@@ -119,8 +123,7 @@ class MassCorrection:
         """
         arrays = self._on(region)
         buf, cells = arrays["buf"], arrays["cells"]
-        buf[:, :, :3] = high
-        sensor_sums(cells, h, buf)
+        sensor_sums(cells, h, high, buf)
         sums = region.cell_sum(buf, also_max)  # one exchange for ΔQ^H, the sensor, also_max
         dq = (sums[:, :3] + boundary) / mass[:, None]
         sensor = np.abs(sums[:, 3]) / (sums[:, 4] + self.delta)

@@ -6,7 +6,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.config import Case
-from fem_runout.health import reduce_flag
+from fem_runout.health import reduce_flag, state_flag
 from fem_runout.mesh import Discretization, zero_wall_normal
 from fem_runout.physics.friction.base import spend_capacity
 from fem_runout.problem import build_problem
@@ -183,13 +183,9 @@ class TG2Solver:
         the next :meth:`stable_dt` (the transport's low-order pass of this state, kept for
         the next step): one reduction for the step's check and the next step's size.
         """
-        own = slice(0, self.disc.n_owned_nodes)
-        q = self.transport.state()[own]
-        local = 0
-        if not np.isfinite(q).all():
-            local = 2
-        elif q.shape[0] and q[:, 0].min() < 0.0:
-            local = 1
+        n, t = self.disc.n_owned_nodes, self.transport
+        h = t.h.x.array
+        local = state_flag(h, t.hu.x.array, t.hv.x.array, n)
         with np.errstate(all="ignore"):  # a bad state still takes part in the pass's exchange
             limits = self.transport.local_limits(with_slope=True)
         worst = reduce_flag(self.comm, local, limits, also_max)
@@ -198,7 +194,7 @@ class TG2Solver:
         if worst == 2:
             return "the state has NaN or infinite values"
         if worst == 1:
-            hmin = self.comm.allreduce(float(q[:, 0].min()) if q.shape[0] else 0.0, op=MPI.MIN)
+            hmin = self.comm.allreduce(float(h[:n].min()) if n else 0.0, op=MPI.MIN)
             return f"negative depth {hmin:.3e} m"
         return None
 

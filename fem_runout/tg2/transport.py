@@ -45,6 +45,16 @@ def _gather_state(h, hu, hv, nodes, out):
 
 
 @numba.njit(cache=True)
+def _low_state(q0, sums, boundary, m, dt):
+    """``q0 + dt (Σ A_L + boundary) / m``: the low-order state (the array formula's bits)."""
+    out = np.empty_like(q0)
+    for i in range(q0.shape[0]):
+        for c in range(3):
+            out[i, c] = q0[i, c] + (dt * (sums[i, c] + boundary[i, c])) / m[i]
+    return out
+
+
+@numba.njit(cache=True)
 def _scatter_state(h, hu, hv, nodes, q):
     """``(h, hu, hv)[nodes[k]] = q[k]`` (one pass)."""
     for k in range(nodes.size):
@@ -272,7 +282,7 @@ class Transport:
         q0 = self.state_on(nodes)
         u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
         boundary = self._boundary_flux(q0, u)
-        q_low = q0 + dt * (self._sums[:, :3] + boundary) / m[:, None]
+        q_low = _low_state(q0, self._sums, boundary, m, self._dt)
         aec = high - dt * arrays["lo"]
         # the limiter's patch extrema and the speed bound (maxima over the ranks) travel in the
         # mass correction's exchange
