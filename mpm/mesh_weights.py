@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numba.core.cpu import CPUTargetOptions
 
 from mpm.mesh_clip import (
     MAX_VISITED,
@@ -21,7 +20,7 @@ from mpm.mesh_clip import (
     polygon_area,
     quad_points,
 )
-from mpm.mesh_locate import map_point, tangents
+from mpm.mesh_locate import map_point, tangents, without_refcounts
 
 __all__ = ["MAX_CELLS", "domain_basis", "domain_scratch", "point_basis"]
 
@@ -309,23 +308,7 @@ def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
     return offsets[n]
 
 
-def _without_refcounts(func):
-    """Compile ``func`` without numba's reference counting (``_nrt=False``) where numba has it.
-
-    The loop hands arrays to inlined helpers on every particle and cell it visits, and numba
-    keeps an increment and a decrement of each array's count around each such call (340
-    indirect calls in the compiled loop): measured on the gmsh disc's hemisphere (7 666
-    particles), 26.4 ms with them, 21.9 ms with the scratch allocated outside, 11.1 ms without
-    reference counts, the same bits (session 34). A loop that allocates nothing needs no
-    counts. ``_nrt`` is numba's internal option (an unknown option fails only at the first
-    call, so its presence is checked here); a numba without it gets the counted loop.
-    """
-    if hasattr(CPUTargetOptions, "_nrt"):
-        return numba.njit(cache=True, _nrt=False)(func)
-    return numba.njit(cache=True)(func)
-
-
-_domain_loop = _without_refcounts(_domain_loop)
+_domain_loop = without_refcounts(_domain_loop)
 
 
 @numba.njit(cache=True, inline="always")
