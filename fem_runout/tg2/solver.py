@@ -47,6 +47,7 @@ class TG2Solver:
         t = transport
         self.fields = {"h": t.h, "hu": t.hu, "hv": t.hv, "z": t.z}
         self._limits: tuple[float, float] | None = None  # stable_dt of the state, if known
+        self._snap: np.ndarray | None = None  # the snapshot's buffer, reused
 
     @property
     def n_particles(self) -> None:
@@ -132,8 +133,13 @@ class TG2Solver:
                                         self.reaction.bed(state[:, 1:], nodes))
 
     def snapshot(self) -> tuple[np.ndarray, float]:
-        """Copy the state, to restore the last good step."""
-        return self.transport.state(), self.transport.outflow_volume
+        """Copy the state, to restore the last good step (valid until the next snapshot).
+
+        The copy reuses one buffer: the runner takes a snapshot every step, and a fresh
+        array of the whole mesh's state each time cost its page faults.
+        """
+        self._snap = self.transport.state(self._snap)
+        return self._snap, self.transport.outflow_volume
 
     def restore(self, snap: tuple[np.ndarray, float]) -> None:
         """Restore a :meth:`snapshot`."""

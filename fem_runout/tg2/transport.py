@@ -137,9 +137,12 @@ class Transport:
         self._active_key, self._on = -1, {}
 
     # -- state -----------------------------------------------------------------------------
-    def state(self) -> np.ndarray:
-        """(n_nodes_local, 3) copy of (h, hu, hv)."""
-        return np.stack([self.h.x.array, self.hu.x.array, self.hv.x.array], axis=1)
+    def state(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(n_nodes_local, 3) copy of (h, hu, hv), into ``out`` if it has that shape."""
+        arrays = [self.h.x.array, self.hu.x.array, self.hv.x.array]
+        if out is None or out.shape != (arrays[0].size, 3):
+            out = np.empty((arrays[0].size, 3))
+        return np.stack(arrays, axis=1, out=out)
 
     def state_on(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3) copy of (h, hu, hv) at the local nodes ``nodes``."""
