@@ -174,3 +174,27 @@ def test_state_flag_codes():
     h[3], hv[7], hu[9] = 1.0, 0.0, np.nan
     assert state_flag(h, hu, hv, 9) == 0
     assert state_flag(h, hu, hv, 10) == 2
+
+
+def test_state_bounds_are_the_hydrostatic_candidates_and_momentum_extrema_of_both_states():
+    """state_bounds (one pass, each node's surface formed once per cell) = depth_candidates
+    and the momenta's patch extrema of the two states, bit for bit; dry nodes and steps in the
+    bed included."""
+    rng = np.random.default_rng(5)
+    n_nodes, n = 300, 400
+    cells = rng.integers(0, n_nodes, size=(n, 4))
+    z = 100.0 * rng.random(n_nodes)
+    states = []
+    for _ in range(2):
+        h = rng.random(n_nodes) * (rng.random(n_nodes) < 0.6)
+        states.append((h, rng.normal(size=n_nodes), rng.normal(size=n_nodes)))
+    hi, lo = np.full((3, n_nodes), -np.inf), np.full((3, n_nodes), np.inf)
+    fct.state_bounds(cells, *states[0], *states[1], z, hi, lo)
+    ref_hi, ref_lo = np.full((3, n_nodes), -np.inf), np.full((3, n_nodes), np.inf)
+    for h, qx, qy in states:
+        fct.depth_candidates(cells, h, z, ref_hi[0], ref_lo[0])
+        fct.patch_extrema(cells, qx, ref_hi[1], ref_lo[1])
+        fct.patch_extrema(cells, qy, ref_hi[2], ref_lo[2])
+    assert np.array_equal(_bits(hi), _bits(ref_hi)) and np.array_equal(_bits(lo), _bits(ref_lo))
+    wet = np.isfinite(hi[0])
+    assert wet.sum() > 200 and (lo[0][wet] <= hi[0][wet]).all()

@@ -293,11 +293,13 @@ def limit_serial(
 def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
     """Patch bounds of two states in one pass over the cells (extends ``hi``/``lo`` (3, n)).
 
-    Row 0: the hydrostatic depth candidates of :func:`depth_candidates`; rows 1, 2: the
-    extrema of the momenta; both states (old and low-order) count.
+    Row 0: the hydrostatic depth candidates of :func:`depth_candidates` (the nodes' surfaces
+    ``h + Z`` formed once per cell and state: the same operations); rows 1, 2: the extrema of
+    the momenta; both states (old and low-order) count.
     """
     for k in range(cells.shape[0]):
         i0, i1, i2, i3 = cells[k, 0], cells[k, 1], cells[k, 2], cells[k, 3]
+        z0, z1, z2, z3 = z[i0], z[i1], z[i2], z[i3]
         for s in range(2):
             h = h0 if s == 0 else h1
             qx = qx0 if s == 0 else qx1
@@ -306,13 +308,19 @@ def state_bounds(cells, h0, qx0, qy0, h1, qx1, qy1, z, hi, lo):
             mx_lo = min(min(qx[i0], qx[i1]), min(qx[i2], qx[i3]))
             my_hi = max(max(qy[i0], qy[i1]), max(qy[i2], qy[i3]))
             my_lo = min(min(qy[i0], qy[i1]), min(qy[i2], qy[i3]))
+            ha0, ha1, ha2, ha3 = h[i0], h[i1], h[i2], h[i3]
+            e0, e1, e2, e3 = ha0 + z0, ha1 + z1, ha2 + z2, ha3 + z3
             for a in range(4):
-                i = cells[k, a]
-                h_i, z_i = h[i], z[i]
-                c_hi, c_lo = hi[0, i], lo[0, i]  # the node's extrema kept in registers
+                i = i0 if a == 0 else (i1 if a == 1 else (i2 if a == 2 else i3))
+                h_i = ha0 if a == 0 else (ha1 if a == 1 else (ha2 if a == 2 else ha3))
+                z_i = z0 if a == 0 else (z1 if a == 1 else (z2 if a == 2 else z3))
+                e_i = e0 if a == 0 else (e1 if a == 1 else (e2 if a == 2 else e3))
+                c_hi, c_lo = hi[0, i], lo[0, i]
                 for b in range(4):
-                    j = cells[k, b]
-                    c = hydrostatic_candidate(h_i, z_i, h[j], z[j])
+                    z_j = z0 if b == 0 else (z1 if b == 1 else (z2 if b == 2 else z3))
+                    e_j = e0 if b == 0 else (e1 if b == 1 else (e2 if b == 2 else e3))
+                    top = max(z_i, z_j)
+                    c = h_i + max(0.0, e_j - top) - max(0.0, e_i - top)
                     c_hi = max(c_hi, c)
                     c_lo = min(c_lo, c)
                 hi[0, i], lo[0, i] = c_hi, c_lo
