@@ -104,22 +104,25 @@ def split_flux_sums(aec, flux, source, out):
             flux[c, k, 0], flux[c, k, 1], flux[c, k, 2] = f01, f02, f03
             flux[c, k, 3], flux[c, k, 4], flux[c, k, 5] = f12, f13, f23
             # the pairs in the order of PAIRS, as flux_sums adds them
-            p0, m1 = (p0 + f01, m1 - f01) if f01 > 0.0 else (p0, m1)
-            m0, p1 = (m0, p1) if f01 > 0.0 else (m0 + f01, p1 - f01)
-            p0, m2 = (p0 + f02, m2 - f02) if f02 > 0.0 else (p0, m2)
-            m0, p2 = (m0, p2) if f02 > 0.0 else (m0 + f02, p2 - f02)
-            p0, m3 = (p0 + f03, m3 - f03) if f03 > 0.0 else (p0, m3)
-            m0, p3 = (m0, p3) if f03 > 0.0 else (m0 + f03, p3 - f03)
-            p1, m2 = (p1 + f12, m2 - f12) if f12 > 0.0 else (p1, m2)
-            m1, p2 = (m1, p2) if f12 > 0.0 else (m1 + f12, p2 - f12)
-            p1, m3 = (p1 + f13, m3 - f13) if f13 > 0.0 else (p1, m3)
-            m1, p3 = (m1, p3) if f13 > 0.0 else (m1 + f13, p3 - f13)
-            p2, m3 = (p2 + f23, m3 - f23) if f23 > 0.0 else (p2, m3)
-            m2, p3 = (m2, p3) if f23 > 0.0 else (m2 + f23, p3 - f23)
+            p0, m0, p1, m1 = _pair_sums(f01, p0, m0, p1, m1)
+            p0, m0, p2, m2 = _pair_sums(f02, p0, m0, p2, m2)
+            p0, m0, p3, m3 = _pair_sums(f03, p0, m0, p3, m3)
+            p1, m1, p2, m2 = _pair_sums(f12, p1, m1, p2, m2)
+            p1, m1, p3, m3 = _pair_sums(f13, p1, m1, p3, m3)
+            p2, m2, p3, m3 = _pair_sums(f23, p2, m2, p3, m3)
             out[k, 0, 2 * c], out[k, 0, 2 * c + 1] = p0, m0
             out[k, 1, 2 * c], out[k, 1, 2 * c + 1] = p1, m1
             out[k, 2, 2 * c], out[k, 2, 2 * c + 1] = p2, m2
             out[k, 3, 2 * c], out[k, 3, 2 * c + 1] = p3, m3
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_sums(f, p_a, m_a, p_b, m_b):
+    """Add a pair flux ``f`` (a gets ``+f``, b ``-f``) to ``P⁺_a, P⁻_a, P⁺_b, P⁻_b``."""
+    if f > 0.0:
+        return p_a + f, m_a, p_b, m_b - f
+    return p_a, m_a + f, p_b - f, m_b
+
 
 @numba.njit(cache=True)
 def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
