@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numba.core.cpu import CPUTargetOptions
+
+from fem_runout.compiled import without_refcounts
 
 __all__ = ["INSIDE", "MAX_WALK", "NEWTON", "NEWTON_STEP", "WALK_EDGES", "inverse_anchor",
            "inverse_map", "invert_near", "jacobian_det", "map_point", "newton", "tangents", "walk",
-           "walk_from", "without_refcounts"]
+           "walk_from"]
 
 #: Corners of the four edges in the walk's order: ξ = 0, ξ = 1, η = 0, η = 1.
 WALK_EDGES = np.array([[0, 2], [1, 3], [0, 1], [2, 3]], dtype=np.int64)
@@ -190,24 +191,6 @@ def _walk_loop(geo, origin, neighbour, kind, cell, xi, eta, dx, dy, c_out, a_out
         k, a, b, code = _locate(geo, origin, neighbour, kind, cell[p], xi[p], eta[p],
                                 dx[p], dy[p])
         c_out[p], a_out[p], b_out[p], out[p] = k, a, b, code == 1
-
-
-def without_refcounts(func):
-    """Compile ``func`` without numba's reference counting (``_nrt=False``) where numba has it.
-
-    A loop that hands arrays to inlined helpers for every particle (and every cell it visits)
-    gets from numba an increment and a decrement of each array's count around each such call.
-    Measured, the same bits: :func:`mpm.mesh_weights.domain_basis` on the gmsh disc's
-    hemisphere (7 666 particles) 26.4 ms with them, 21.9 ms with the scratch allocated
-    outside, 11.1 ms without (340 indirect calls in the loop; session 34); :func:`walk` on
-    the avaKot corridor's 21 905 moved particles 2.2 ms → 0.95 ms (session 35). A loop that
-    allocates nothing needs no counts. ``_nrt`` is numba's internal option (an unknown option
-    fails only at the first call, so its presence is checked here); a numba without it gets
-    the counted loop.
-    """
-    if hasattr(CPUTargetOptions, "_nrt"):
-        return numba.njit(cache=True, _nrt=False)(func)
-    return numba.njit(cache=True)(func)
 
 
 _walk_loop = without_refcounts(_walk_loop)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from fem_runout.compiled import without_refcounts
 from mpm.mesh_clip import (
     MAX_VISITED,
     cell_polygon,
@@ -20,7 +21,7 @@ from mpm.mesh_clip import (
     polygon_area,
     quad_points,
 )
-from mpm.mesh_locate import map_point, tangents, without_refcounts
+from mpm.mesh_locate import map_point, tangents
 
 __all__ = ["MAX_CELLS", "domain_basis", "domain_scratch", "point_basis"]
 

@@ -37,6 +37,20 @@ import numpy as np
 PAIRS = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
 
 
+@numba.njit(cache=True, inline="always")
+def _pair_sums(f, p_a, m_a, p_b, m_b):
+    """Add a pair flux ``f`` (a gets ``+f``, b ``-f``) to ``P⁺_a, P⁻_a, P⁺_b, P⁻_b``."""
+    if f > 0.0:
+        return p_a + f, m_a, p_b, m_b - f
+    return p_a, m_a + f, p_b - f, m_b
+
+
+@numba.njit(cache=True, inline="always")
+def _own_factor(f, rplus_i, rminus_i, rplus_j, rminus_j):
+    """Zalesak's factor of a pair flux ``f`` from ``i`` to ``j`` (scalars: no array counts)."""
+    return min(rplus_i, rminus_j) if f > 0.0 else min(rminus_i, rplus_j)
+
+
 @numba.njit(cache=True)
 def split_pairs(aec, flux, source):
     """Element-to-edge decomposition: ``f_ab = (a_a - a_b)/4`` per pair, ``μ = Σ_a a_a / 4``.
@@ -72,13 +86,8 @@ def flux_sums(flux, source, out):
             f = flux[k, p]
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
-            if f > 0.0:
-                out[k, a, 0] += f
-                out[k, b, 1] -= f
-            else:
-                out[k, a, 1] += f
-                out[k, b, 0] -= f
-
+            out[k, a, 0], out[k, a, 1], out[k, b, 0], out[k, b, 1] = _pair_sums(
+                f, out[k, a, 0], out[k, a, 1], out[k, b, 0], out[k, b, 1])
 
 
 @numba.njit(cache=True)
@@ -116,14 +125,6 @@ def split_flux_sums(aec, flux, source, out):
             out[k, 3, 2 * c], out[k, 3, 2 * c + 1] = p3, m3
 
 
-@numba.njit(cache=True, inline="always")
-def _pair_sums(f, p_a, m_a, p_b, m_b):
-    """Add a pair flux ``f`` (a gets ``+f``, b ``-f``) to ``P⁺_a, P⁻_a, P⁺_b, P⁻_b``."""
-    if f > 0.0:
-        return p_a + f, m_a, p_b, m_b - f
-    return p_a, m_a + f, p_b - f, m_b
-
-
 @numba.njit(cache=True)
 def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
     """Limited fluxes ``f*`` and sources per cell and node (``out[K, a]``, overwritten).
@@ -144,10 +145,7 @@ def limit_pairs(cells, flux, source, rplus, rminus, cap, out):
             j = cells[k, b]
             f = flux[k, p]
             c = min(cap[i], cap[j])
-            if f > 0.0:
-                f *= min(c, min(rplus[i], rminus[j]))
-            else:
-                f *= min(c, min(rminus[i], rplus[j]))
+            f *= min(c, _own_factor(f, rplus[i], rminus[i], rplus[j], rminus[j]))
             out[k, a] += f
             out[k, b] -= f
 
@@ -392,9 +390,3 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
             out[k, b, 1] -= g1
             out[k, a, 2] += g2
             out[k, b, 2] -= g2
-
-
-@numba.njit(cache=True, inline="always")
-def _own_factor(f, rplus_i, rminus_i, rplus_j, rminus_j):
-    """Zalesak's factor of a pair flux ``f`` from ``i`` to ``j`` (scalars: no array counts)."""
-    return min(rplus_i, rminus_j) if f > 0.0 else min(rminus_i, rplus_j)
