@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from fem_runout.physics.bed_filter import heat_smoothed
@@ -66,6 +67,19 @@ class BedFrame:
         return np.sqrt(1.0 + along * along)
 
 
+@numba.njit(cache=True)
+def _normal_acceleration(hess, ux, uy, g, out):
+    """``out = max(g + u·H·u, 0)`` per node, ``u·H·u = u (Z_xx u + Z_xy v) + v (Z_xy u + Z_yy v)``.
+
+    NaN propagates (as ``np.maximum``): a bad state is reported by the health check.
+    """
+    for i in range(out.shape[0]):
+        x, y = ux[i], uy[i]
+        uhu = x * (hess[i, 0] * x + hess[i, 1] * y) + y * (hess[i, 1] * x + hess[i, 2] * y)
+        v = g + uhu
+        out[i] = 0.0 if v < 0.0 else v
+
+
 class SlopeGeometry:
     """Nodal bed geometry: gradient, Hessian and ``cos²θ`` of a Q1 bed, and the factor ``G``.
 
@@ -91,13 +105,15 @@ class SlopeGeometry:
 
     def normal_acceleration(self, ux: np.ndarray, uy: np.ndarray) -> np.ndarray:
         """``max(g + u·H·u, 0)``: vertical acceleration a flow following the bed needs [m/s²]."""
-        hxx, hxy, hyy = self.hess[:, 0], self.hess[:, 1], self.hess[:, 2]
-        uhu = ux * (hxx * ux + hxy * uy) + uy * (hxy * ux + hyy * uy)
-        return np.maximum(self.g + uhu, 0.0)
+        out = np.empty(self.hess.shape[0])
+        _normal_acceleration(self.hess, np.asarray(ux, dtype=float),
+                             np.asarray(uy, dtype=float), self.g, out)
+        return out
 
     def pressure_gravity(self, ux: np.ndarray, uy: np.ndarray) -> np.ndarray:
         """``G = cos²θ max(g + u·H·u, 0)``, which replaces ``g`` in ``g h ∇(h + Z)``."""
-        return self.cos2 * self.normal_acceleration(ux, uy)
+        return np.multiply(self.normal_acceleration(ux, uy), self.cos2,
+                           out=np.empty(self.cos2.shape))
 
     def frame(self, ux: np.ndarray | None = None, uy: np.ndarray | None = None) -> BedFrame:
         """Return the :class:`BedFrame` for friction (the velocity matters with ``curvature``)."""

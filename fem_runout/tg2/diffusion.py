@@ -133,7 +133,8 @@ class DiffusionReaction:
         return d.comm.allreduce(local, op=MPI.MAX)
 
     # -- one step ----------------------------------------------------------------------------
-    def step(self, q: np.ndarray, dt: float, nodes: np.ndarray | None = None) -> np.ndarray:
+    def step(self, q: np.ndarray, dt: float, nodes: np.ndarray | None = None,
+             bed: BedFrame | None = None) -> np.ndarray:
         """Advance the momenta (n, 2) by ``dt``; returns the new momenta.
 
         The rheology is integrated by the IMEX-RKC of eq. 17 with the friction as its implicit
@@ -148,9 +149,12 @@ class DiffusionReaction:
             q: (n, 2) momenta at the local nodes ``nodes`` (all of them with a rheology).
             dt: Time step.
             nodes: Local nodes of the rows of ``q`` (default: all).
+            bed: :meth:`bed` of ``q`` if the caller has it (friction only: with a rheology
+                the friction's bed is that of the stressed momenta, formed here).
         """
         h = self.h.x.array if nodes is None else self.h.x.array[nodes]
         if self.rheology is not None:
+            bed = None
             if nodes is not None and nodes.size != self.h.x.array.size:
                 raise ValueError("the rheology's stress needs every node")
             sigma = self.update_viscosity(q)
@@ -158,7 +162,8 @@ class DiffusionReaction:
                               lambda w: np.zeros_like(w))
             self.last_stages = self.rkc.last_stages
         if self.friction is not None:
-            qx, qy = self.friction.integrate(h, q[:, 0], q[:, 1], dt, self.bed(q, nodes))
+            bed = self.bed(q, nodes) if bed is None else bed
+            qx, qy = self.friction.integrate(h, q[:, 0], q[:, 1], dt, bed)
             q = np.stack([qx, qy], axis=1)
         return q
 

@@ -53,6 +53,23 @@ def nodal_velocity(h, qx, qy, kappa, ux, uy):  # noqa: D103 - documented in velo
         uy[i] = qy[i] * f
 
 
+@numba.njit(cache=True)
+def velocity_on(h, qx, qy, nodes, kappa, ux, uy, ux_on, uy_on):
+    """:func:`velocity` at the local ``nodes`` only: into ``ux``, ``uy`` there and compact.
+
+    ``ux_on[k] = ux[nodes[k]]`` (the same operations as :func:`nodal_velocity`).
+    """
+    for k in range(nodes.shape[0]):
+        i = nodes[k]
+        hp = max(h[i], 0.0)
+        hk = max(h[i], kappa)
+        f = 2.0 * hp / (hp * hp + hk * hk)
+        ux_on[k] = qx[i] * f
+        uy_on[k] = qy[i] * f
+        ux[i] = ux_on[k]
+        uy[i] = uy_on[k]
+
+
 def velocity_factor(h: np.ndarray, kappa: float) -> np.ndarray:
     """``2 max(h, 0) / (max(h, 0)² + max(h, κ)²)``: ``u = q × factor`` (see :func:`velocity`).
 
@@ -73,6 +90,11 @@ def velocity(h, qx, qy, kappa: float, ux, uy) -> None:
     nodal_velocity(h, qx, qy, kappa, ux, uy)
 
 
+def pair_norms(beta: np.ndarray) -> np.ndarray:
+    """``|β_ab| = sqrt(β_x² + β_y²)`` of :func:`pair_coefficients` (n, 6): the pairs' norms."""
+    return np.sqrt(beta[..., 0] * beta[..., 0] + beta[..., 1] * beta[..., 1])
+
+
 PAIRS = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
 
 
@@ -90,7 +112,7 @@ def pair_coefficients(C: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
+def low_order_pass(cells, beta, beta_norm, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
     """Low-order rates per cell and node, and the time-step capacity per node, in one pass.
 
     Every unordered pair is visited once: its mass and momentum fluxes are antisymmetric
@@ -99,6 +121,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
     Args:
         cells: (n, 4) local node indices of the cells to process.
         beta: (n, 6, 2) pair coefficients (:func:`pair_coefficients`).
+        beta_norm: (n, 6) their norms ``sqrt(β_x² + β_y²)`` (:func:`pair_norms`).
         C: (n, 4, 4, 2) ``∫_K φ_i ∇φ_j`` (for the pressure term).
         h: Nodal depth (ghosts up to date).
         qx: Nodal x-momentum.
@@ -109,10 +132,12 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
         g: Nodal gravity of the pressure term, ``g`` or the slope form's ``G``.
         tol: Depth δ of the wet weight (:func:`bank_drop`).
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
-        cap: (n, 4) ``Σ_j (d_ij + |β_ij·u_i|)`` per cell and node is added here.
+        cap: (n, 4) ``Σ_j (d_ij + |β_ij·u_i|)`` per cell and node (overwritten).
     """
     for k in range(cells.shape[0]):
         nodes = cells[k]
+        for a in range(4):
+            cap[k, a] = 0.0
         for a in range(4):
             i = nodes[a]
             eta_i = h[i] + z[i]
@@ -143,7 +168,7 @@ def low_order_pass(cells, beta, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
             zm = max(z[i], z[j])
             hs_ij = max(0.0, h[i] + z[i] - zm)
             hs_ji = max(0.0, h[j] + z[j] - zm)
-            nb = np.sqrt(bx * bx + by * by)
+            nb = beta_norm[k, p]
             bu_i = bx * ux[i] + by * uy[i]
             bu_j = bx * ux[j] + by * uy[j]
             c_i = c0 if a == 0 else (c1 if a == 1 else c2)  # a < b in PAIRS

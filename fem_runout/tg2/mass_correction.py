@@ -65,6 +65,18 @@ def sensor_sums(cells, h, high, out):
 
 
 @numba.njit(cache=True)
+def rates_and_sensor(sums, boundary, mass, delta, dq, sensor):
+    """``dq = (sums[:, :3] + boundary) / mass``, ``sensor = |sums[:, 3]| / (sums[:, 4] + δ)``.
+
+    The high-order rate ``ΔQ^H`` of each node and the smoothness sensor ``s`` of the depth.
+    """
+    for i in range(sums.shape[0]):
+        for c in range(3):
+            dq[i, c] = (sums[i, c] + boundary[i, c]) / mass[i]
+        sensor[i] = abs(sums[i, 3]) / (sums[i, 4] + delta)
+
+
+@numba.njit(cache=True)
 def add_correction(cells, mc, dq, sensor, aec):
     """``aec[K] += w_K (M_L^K − M_C^K) ΔQ^H`` with ``w_K = min_a (1 − s_a)`` (in place)."""
     for k in range(cells.shape[0]):
@@ -125,6 +137,6 @@ class MassCorrection:
         buf, cells = arrays["buf"], arrays["cells"]
         sensor_sums(cells, h, high, buf)
         sums = region.cell_sum(buf, also_max)  # one exchange for ΔQ^H, the sensor, also_max
-        dq = (sums[:, :3] + boundary) / mass[:, None]
-        sensor = np.abs(sums[:, 3]) / (sums[:, 4] + self.delta)
+        dq, sensor = np.empty((sums.shape[0], 3)), np.empty(sums.shape[0])
+        rates_and_sensor(sums, boundary, mass, self.delta, dq, sensor)
         add_correction(cells, arrays["mc"], dq, sensor, aec)

@@ -9,6 +9,7 @@ from fem_runout.config import Case
 from fem_runout.health import reduce_flag, state_flag
 from fem_runout.mesh import Discretization, zero_wall_normal
 from fem_runout.physics.friction.base import spend_capacity
+from fem_runout.physics.slope import BedFrame
 from fem_runout.problem import build_problem
 from fem_runout.tg2.diffusion import DiffusionReaction
 from fem_runout.tg2.transport import Transport
@@ -86,8 +87,11 @@ class TG2Solver:
         t.step(0.5 * dt)
         nodes = t.active.nodes if self.reaction.rheology is None else None
         state = self._state(nodes)
-        rest = self._unused_capacity(state, dt, nodes)
-        state[:, 1:] = self.reaction.step(state[:, 1:], dt, nodes)
+        # the friction's bed under the state (one for the capacity and the step: the same q)
+        once = self.reaction.rheology is None and self.reaction.friction is not None
+        bed = self.reaction.bed(state[:, 1:], nodes) if once else None
+        rest = self._unused_capacity(state, dt, nodes, bed)
+        state[:, 1:] = self.reaction.step(state[:, 1:], dt, nodes, bed)
         sides = self.disc.sides if nodes is None else t.active.sides()
         zero_wall_normal(sides, state[:, 1], state[:, 2])
         self._set_state(nodes, state)
@@ -116,35 +120,50 @@ class TG2Solver:
         else:
             t.set_state_on(nodes, state)
 
-    def _unused_capacity(self, state: np.ndarray, dt: float,
-                         nodes: np.ndarray | None) -> np.ndarray | None:
+    def _unused_capacity(self, state: np.ndarray, dt: float, nodes: np.ndarray | None,
+                         bed: BedFrame | None = None) -> np.ndarray | None:
         """Coulomb capacity D leaves, per node (:meth:`FrictionLaw.unused_capacity`), or None.
 
         Strang's ``T(dt/2) D(dt) T(dt/2)`` ends with a transport half step that gives a layer
         at rest on a slope the impulse ``g S h dt/2``; what D's capacity ``dt g μ h`` has left
         after stopping the node holds it. Giving the second half its own full capacity
         ``dt/2 g μ h`` instead stopped a decelerating sheet up to a quarter step early
-        (Coulomb stop test). ``state`` holds the rows of ``nodes`` (None: every local node).
+        (Coulomb stop test). ``state`` holds the rows of ``nodes`` (None: every local node);
+        ``bed`` is :meth:`DiffusionReaction.bed` of it, if known.
         """
         friction = self.reaction.friction if self.reaction is not None else None
         if friction is None:
             return None
-        return friction.unused_capacity(state[:, 0], state[:, 1], state[:, 2], dt,
-                                        self.reaction.bed(state[:, 1:], nodes))
+        if bed is None:
+            bed = self.reaction.bed(state[:, 1:], nodes)
+        return friction.unused_capacity(state[:, 0], state[:, 1], state[:, 2], dt, bed)
 
-    def snapshot(self) -> tuple[np.ndarray, float]:
+    def snapshot(self) -> tuple[np.ndarray | None, np.ndarray, float]:
         """Copy the state, to restore the last good step (valid until the next snapshot).
 
-        The copy reuses one buffer: the runner takes a snapshot every step, and a fresh
-        array of the whole mesh's state each time cost its page faults.
+        Only the flow's nodes when the state is known to be zero elsewhere (the transport's
+        active set, friction only: the next step writes no other node); else every node,
+        into one buffer reused from step to step.
         """
-        self._snap = self.transport.state(self._snap)
-        return self._snap, self.transport.outflow_volume
+        t = self.transport
+        nodes = t.flow_nodes() if self.reaction is None or self.reaction.rheology is None \
+            else None
+        if nodes is None:
+            self._snap = t.state(self._snap)
+            return None, self._snap, t.outflow_volume
+        return nodes, t.state_on(nodes), t.outflow_volume
 
-    def restore(self, snap: tuple[np.ndarray, float]) -> None:
+    def restore(self, snap: tuple[np.ndarray | None, np.ndarray, float]) -> None:
         """Restore a :meth:`snapshot`."""
-        self.transport.set_state(snap[0])
-        self.transport.outflow_volume = snap[1]
+        nodes, q, outflow = snap
+        t = self.transport
+        if nodes is None:
+            t.set_state(q)
+        else:
+            full = np.zeros((t.h.x.array.size, 3))
+            full[nodes] = q
+            t.set_state(full)
+        t.outflow_volume = outflow
         self._limits = None
 
     def save_state(self) -> dict:

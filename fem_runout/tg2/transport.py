@@ -16,7 +16,6 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
@@ -26,54 +25,18 @@ from fem_runout.mesh import Discretization, GhostReducer, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
+from fem_runout.tg2.compact import (
+    antidiffusive,
+    gather_state,
+    low_state,
+    new_state,
+    scatter_state,
+    settle,
+)
 from fem_runout.tg2.high_order import HighOrder
 from fem_runout.tg2.limiter import Limiter
-from fem_runout.tg2.low_order import (
-    low_order_pass,
-    velocity,
-)
+from fem_runout.tg2.low_order import low_order_pass, pair_norms, velocity_on
 from fem_runout.tg2.mass_correction import MassCorrection
-
-
-@numba.njit(cache=True)
-def _gather_state(h, hu, hv, nodes, out):
-    """``out[k] = (h, hu, hv)[nodes[k]]`` (one pass)."""
-    for k in range(nodes.size):
-        i = nodes[k]
-        out[k, 0], out[k, 1], out[k, 2] = h[i], hu[i], hv[i]
-    return out
-
-
-@numba.njit(cache=True)
-def _low_state(q0, sums, boundary, m, dt):
-    """``q0 + dt (Σ A_L + boundary) / m``: the low-order state (the array formula's bits)."""
-    out = np.empty_like(q0)
-    for i in range(q0.shape[0]):
-        for c in range(3):
-            out[i, c] = q0[i, c] + (dt * (sums[i, c] + boundary[i, c])) / m[i]
-    return out
-
-
-@numba.njit(cache=True)
-def _scatter_state(h, hu, hv, nodes, q):
-    """``(h, hu, hv)[nodes[k]] = q[k]`` (one pass)."""
-    for k in range(nodes.size):
-        i = nodes[k]
-        h[i], hu[i], hv[i] = q[k, 0], q[k, 1], q[k, 2]
-
-
-@numba.njit(cache=True)
-def _settle(q, floor, kappa, kappa2):
-    """Round-off depths in ``(floor, 0)`` to 0; thin-layer momenta damped (see ``_finalise``)."""
-    for i in range(q.shape[0]):
-        if q[i, 0] < 0.0 and q[i, 0] > floor:
-            q[i, 0] = 0.0
-        if q[i, 0] < kappa:
-            ht = max(q[i, 0], 0.0)
-            f = 2.0 * ht * ht / (ht * ht + kappa2)
-            q[i, 1] *= f
-            q[i, 2] *= f
-
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
 WET_DEPTH = 1e3
@@ -144,14 +107,22 @@ class Transport:
             out = np.empty((arrays[0].size, 3))
         return np.stack(arrays, axis=1, out=out)
 
+    def flow_nodes(self) -> np.ndarray | None:
+        """Local nodes outside which the state is exactly zero (the active set's), or None.
+
+        None when that is not known: without the active set, or after :meth:`set_state`
+        until the next low-order pass has fitted the set to the new state.
+        """
+        return self.active.nodes if self.active_set and not self._anywhere else None
+
     def state_on(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3) copy of (h, hu, hv) at the local nodes ``nodes``."""
-        return _gather_state(self.h.x.array, self.hu.x.array, self.hv.x.array,
+        return gather_state(self.h.x.array, self.hu.x.array, self.hv.x.array,
                              np.asarray(nodes), np.empty((len(nodes), 3)))
 
     def set_state_on(self, nodes: np.ndarray, q: np.ndarray) -> None:
         """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values)."""
-        _scatter_state(self.h.x.array, self.hu.x.array, self.hv.x.array, np.asarray(nodes),
+        scatter_state(self.h.x.array, self.hu.x.array, self.hv.x.array, np.asarray(nodes),
                        np.asarray(q, dtype=np.float64))
         self._fresh = False
 
@@ -235,14 +206,13 @@ class Transport:
         on = self._arrays()
         nodes = on["nodes"]
         h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
-        ux, uy = np.empty(nodes.size), np.empty(nodes.size)
-        velocity(h[nodes], hu[nodes], hv[nodes], self.kappa, ux, uy)
-        self.ux.x.array[nodes], self.uy.x.array[nodes] = ux, uy
+        ux, uy = on["u"]  # the set's velocities: the next step's (compact, (2, n))
+        velocity_on(h, hu, hv, nodes, self.kappa, self.ux.x.array, self.uy.x.array, ux, uy)
         if self.slope is not None:
             self.gn[nodes] = on["slope"].pressure_gravity(ux, uy)
-        on["cap"][:] = 0.0
-        low_order_pass(on["cells"], on["beta"], on["C"], h, hu, hv, z, self.ux.x.array,
-                       self.uy.x.array, self.gn, self.kappa, on["lo"], on["cap"])
+        low_order_pass(on["cells"], on["beta"], on["beta_norm"], on["C"], h, hu, hv, z,
+                       self.ux.x.array, self.uy.x.array, self.gn, self.kappa, on["lo"],
+                       on["cap"])
         # nodal sums of the rates and of the capacities in one exchange
         self._sums = self.active.cell_sum(on["lo_cap"])
         self._fresh = True
@@ -259,8 +229,10 @@ class Transport:
             self._on = {
                 "cells": np.ascontiguousarray(self.disc.cell_nodes[idx]),
                 "beta": np.ascontiguousarray(self._beta[idx]),
+                "beta_norm": np.ascontiguousarray(pair_norms(self._beta[idx])),
                 "C": np.ascontiguousarray(self.disc.C[idx]),
-                "lo_cap": np.empty((idx.size, 4, 4)),
+                "lo_cap": np.empty((idx.size, 4, 4)), "aec": np.empty((idx.size, 4, 3)),
+                "u": np.empty((2, nodes.size)),
                 "nodes": nodes, "mass": self.disc.lumped_mass[nodes],
                 "z": self.z.x.array[nodes],
                 "slope": None if self.slope is None else self.slope.take(nodes),
@@ -283,10 +255,10 @@ class Transport:
         m, z = arrays["mass"], arrays["z"]
         nodes = a.nodes
         q0 = self.state_on(nodes)
-        u = np.stack([self.ux.x.array[nodes], self.uy.x.array[nodes]])
+        u = arrays["u"]  # of q0: the low-order pass of this state wrote them
         boundary = self._boundary_flux(q0, u)
-        q_low = _low_state(q0, self._sums, boundary, m, self._dt)
-        aec = high - dt * arrays["lo"]
+        q_low = low_state(q0, self._sums, boundary, m, self._dt)
+        aec = antidiffusive(high, arrays["lo"], dt, arrays["aec"])
         # the limiter's patch extrema and the speed bound (maxima over the ranks) travel in the
         # mass correction's exchange
         gn = self.gn[nodes]
@@ -302,7 +274,7 @@ class Transport:
                                            self.limiter.finish_bounds(ext, q_low))
         else:
             corr = a.cell_sum(aec)
-        q_new = q_low + corr / m[:, None]
+        q_new = new_state(q_low, corr, m)
         bounds.bound_speed(q_low, q_new, ext[-1], gn)
         self._finalise(q_new, q0, u)
         self.set_state_on(nodes, q_new)
@@ -361,4 +333,4 @@ class Transport:
         every = self.disc.comm.allgather((local, out))
         hmax = max(h for h, _ in every)
         self.outflow_volume += self._dt * sum(o for _, o in every)
-        _settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)
+        settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)

@@ -1,0 +1,135 @@
+"""Compiled passes over compact arrays: the bits of the array formulas they replace."""
+
+import numpy as np
+import pytest
+
+from fem_runout.physics.slope import SlopeGeometry
+from fem_runout.tg2 import compact
+from fem_runout.tg2.low_order import low_order_pass, pair_norms, velocity, velocity_on
+from fem_runout.tg2.mass_correction import rates_and_sensor
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """Bitwise equality (signed zeros and NaN payloads included)."""
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def _data(rng, shape):
+    """Random values with exact zeros, signed zeros and tiny magnitudes mixed in."""
+    x = rng.normal(size=shape) * 10.0 ** rng.integers(-12, 3, size=shape)
+    flat = x.reshape(-1)
+    flat[rng.random(flat.size) < 0.1] = 0.0
+    flat[rng.random(flat.size) < 0.05] = -0.0
+    return x
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_state_passes_give_the_array_formulas_bits(seed):
+    rng = np.random.default_rng(seed)
+    n, cells = 50, 30
+    q_low, corr, sums, boundary = (_data(rng, (n, 3)) for _ in range(4))
+    m = rng.uniform(0.1, 100.0, n)
+    high, lo = _data(rng, (cells, 4, 3)), _data(rng, (cells, 4, 4))[:, :, :3]  # a strided view
+    dt = 0.37
+    assert _same(compact.antidiffusive(high, lo, dt, np.empty((cells, 4, 3))), high - dt * lo)
+    assert _same(compact.new_state(q_low, corr, m), q_low + corr / m[:, None])
+    assert _same(compact.low_state(q_low, sums, boundary, m, dt),
+                 q_low + dt * (sums + boundary) / m[:, None])
+    x, y, nodes = _data(rng, 80), _data(rng, 80), rng.permutation(80)[:n]
+    assert _same(compact.gather_pair(x, y, nodes, np.empty((2, n))), np.stack([x[nodes], y[nodes]]))
+
+
+def test_velocity_on_a_subset_writes_the_same_velocities():
+    rng = np.random.default_rng(4)
+    h = np.abs(_data(rng, 60)) * rng.choice([1.0, -1.0], 60)  # some round-off negative depths
+    hu, hv = _data(rng, 60), _data(rng, 60)
+    nodes = np.sort(rng.permutation(60)[:40])
+    ref_x, ref_y = np.empty(40), np.empty(40)
+    velocity(h[nodes], hu[nodes], hv[nodes], 1e-3, ref_x, ref_y)
+    ux, uy = np.full(60, 7.0), np.full(60, 7.0)
+    on_x, on_y = np.empty(40), np.empty(40)
+    velocity_on(h, hu, hv, nodes, 1e-3, ux, uy, on_x, on_y)
+    assert _same(on_x, ref_x) and _same(on_y, ref_y)
+    assert _same(ux[nodes], ref_x) and _same(uy[nodes], ref_y)
+    others = np.setdiff1d(np.arange(60), nodes)
+    assert np.all(ux[others] == 7.0) and np.all(uy[others] == 7.0)  # the others untouched
+
+
+def test_low_order_pass_overwrites_its_capacities():
+    """Capacities full of garbage give the rates and capacities of a zeroed buffer."""
+    rng = np.random.default_rng(5)
+    cells = np.array([[0, 1, 3, 4], [1, 2, 4, 5], [3, 4, 6, 7], [4, 5, 7, 8]])
+    h = rng.uniform(0.0, 2.0, 9)
+    hu, hv, z = rng.normal(size=9), rng.normal(size=9), rng.normal(size=9)
+    beta, C = rng.normal(size=(4, 6, 2)), rng.normal(size=(4, 4, 4, 2))
+    ux, uy = np.empty(9), np.empty(9)
+    velocity(h, hu, hv, 1e-3, ux, uy)
+    norms = pair_norms(beta)
+    assert _same(norms, np.sqrt(np.square(beta).sum(axis=2)))
+    results = []
+    for fill in (0.0, np.nan):
+        out, cap = np.full((4, 4, 3), fill), np.full((4, 4), fill)
+        low_order_pass(cells, beta, norms, C, h, hu, hv, z, ux, uy, np.full(9, 9.81), 1e-3,
+                       out, cap)
+        results.append((out, cap))
+    assert _same(results[0][0], results[1][0]) and _same(results[0][1], results[1][1])
+    assert np.all(results[0][1] > 0.0)  # every node of a wet patch has a capacity
+
+
+def test_normal_acceleration_is_the_formula():
+    rng = np.random.default_rng(6)
+    n = 40
+    hess, grad = rng.normal(size=(n, 3)), rng.normal(size=(n, 2))
+    ux, uy = rng.normal(size=n) * 20.0, rng.normal(size=n) * 20.0
+    ux[0] = np.nan
+    geom = SlopeGeometry(grad, hess, 9.81)
+    hxx, hxy, hyy = hess[:, 0], hess[:, 1], hess[:, 2]
+    ref = np.maximum(9.81 + (ux * (hxx * ux + hxy * uy) + uy * (hxy * ux + hyy * uy)), 0.0)
+    got = geom.normal_acceleration(ux, uy)
+    assert _same(got, ref) and np.isnan(got[0]) and np.any(got == 0.0)
+    assert _same(geom.pressure_gravity(ux, uy), geom.cos2 * ref)
+
+
+def test_rates_and_sensor_are_the_formulas():
+    rng = np.random.default_rng(7)
+    sums, boundary = _data(rng, (30, 5)), _data(rng, (30, 3))
+    mass = rng.uniform(0.1, 10.0, 30)
+    dq, sensor = np.empty((30, 3)), np.empty(30)
+    rates_and_sensor(sums, boundary, mass, 1e-3, dq, sensor)
+    assert _same(dq, (sums[:, :3] + boundary) / mass[:, None])
+    assert _same(sensor, np.abs(sums[:, 3]) / (sums[:, 4] + 1e-3))
+
+
+def test_a_snapshot_of_the_flows_nodes_restores_the_whole_state():
+    """TG2-PC's snapshot keeps the active set's rows only (zero elsewhere) and restores all."""
+    from mpi4py import MPI
+
+    from fem_runout.api import build_solver
+    from tests.tg2_helpers import case
+
+    def solver():
+        return build_solver(case("hemisphere", "method=tg2", "domain.cells=[32,32]",
+                                 "material.friction.law=voellmy", "material.friction.mu=0.2",
+                                 "material.friction.xi=500"), MPI.COMM_SELF)
+
+    s, twin = solver(), solver()
+    dts = []
+    for _ in range(3):
+        dts.append(0.9 * s.stable_dt())
+        s.advance(dts[-1])
+        twin.advance(dts[-1])
+    snap = s.snapshot()
+    nodes = snap[0]
+    assert nodes is not None and 0 < nodes.size < s.fields["h"].x.array.size
+    for _ in range(4):  # the flow moves on (and the set with it), then the run goes back
+        s.advance(0.9 * s.stable_dt())
+    s.restore(snap)
+    for key in ("h", "hu", "hv"):
+        assert _same(s.fields[key].x.array, twin.fields[key].x.array), key
+    dt = 0.9 * twin.stable_dt()
+    assert s.stable_dt() == twin.stable_dt()
+    s.advance(dt)
+    twin.advance(dt)
+    for key in ("h", "hu", "hv"):
+        assert _same(s.fields[key].x.array, twin.fields[key].x.array), key
