@@ -133,3 +133,61 @@ def test_a_snapshot_of_the_flows_nodes_restores_the_whole_state():
     twin.advance(dt)
     for key in ("h", "hu", "hv"):
         assert _same(s.fields[key].x.array, twin.fields[key].x.array), key
+
+
+def test_reductions_and_ramps_are_the_formulas():
+    from fem_runout.physics.slope import BedFrame, downhill
+    from fem_runout.tg2.limiter import thin_ramp
+
+    rng = np.random.default_rng(8)
+    m, c = rng.uniform(0.1, 9.0, 40), _data(rng, 40)
+    n = 30
+    own_m, own_c = m[:n], c[:n]
+    assert compact.min_ratio(m, c, n) == np.min(own_m[own_c > 0.0] / own_c[own_c > 0.0])
+    assert compact.min_ratio(m, -np.abs(c), n) == np.inf
+    h, s = _data(rng, 40), np.abs(_data(rng, 40))
+    ref = np.max(s[:n] * np.clip(h[:n] / 0.05, 0.0, 1.0))
+    assert compact.wet_weighted_max(h, s, 0.05, n) == ref
+    assert compact.wet_weighted_max(h, s, 0.05, 0) == 0.0
+    near, far = np.abs(_data(rng, 40)), _data(rng, 40)
+    out = np.empty(40)
+    thin_ramp(near, far, 1e-3, 0.1, out)
+    assert _same(out, np.clip(near / (1e-3 + 0.1 * np.maximum(far, 0.0)), 0.0, 1.0))
+    grad = _data(rng, (40, 2))
+    grad[3] = 0.0
+    ref = -grad / np.maximum(np.hypot(grad[:, 0], grad[:, 1]), 1e-300)[:, None]
+    assert _same(downhill(grad), ref) and np.all(downhill(grad)[3] == 0.0)
+    frame = BedFrame(grad, np.ones(40), np.ones(40), downhill(grad))
+    assert _same(frame.take(np.arange(5, 9)).downhill(), ref[5:9])
+
+
+def test_envelopes_fold_like_the_array_formulas():
+    from fem_runout.output.diagnostics import nodal_speed
+    from fem_runout.output.envelopes import fold_envelopes
+
+    rng = np.random.default_rng(9)
+    n, thr, rho, t = 60, 0.01, 200.0, 12.5
+    h = np.abs(_data(rng, n))
+    h[:5] = [0.0, -0.0, 0.01, 0.02, 1e-9]
+    hu, hv = _data(rng, n), _data(rng, n)
+    nodes = np.sort(rng.permutation(n)[:45])
+    start = {"depth": np.abs(_data(rng, n)), "speed": np.abs(_data(rng, n)),
+             "pressure": np.abs(_data(rng, n)),
+             "arrival": np.where(rng.random(n) < 0.5, np.nan, 3.0)}
+    start["depth"][nodes[:3]] = h[nodes[:3]]  # ties
+    ref = {k: v.copy() for k, v in start.items()}
+    speed = nodal_speed(h[nodes], hu[nodes], hv[nodes], thr)
+    ref["depth"][nodes] = np.maximum(ref["depth"][nodes], h[nodes])
+    ref["speed"][nodes] = np.maximum(ref["speed"][nodes], speed)
+    ref["pressure"][nodes] = np.maximum(ref["pressure"][nodes], rho * speed**2)
+    arrival = ref["arrival"][nodes]
+    arrival[np.isnan(arrival) & (h[nodes] > thr)] = t
+    ref["arrival"][nodes] = arrival
+    got = {k: v.copy() for k, v in start.items()}
+    fold_envelopes(nodes, h, hu, hv, thr, got["depth"], got["speed"], got["pressure"],
+                   got["arrival"], t, rho)
+    for key in ref:
+        assert _same(got[key], ref[key]), key
+    only = {k: start[k].copy() for k in ("depth", "speed")}
+    fold_envelopes(nodes, h, hu, hv, thr, only["depth"], only["speed"])
+    assert _same(only["depth"], ref["depth"]) and _same(only["speed"], ref["speed"])

@@ -14,6 +14,7 @@ import numpy as np
 from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
+from fem_runout.output.envelopes import fold_envelopes
 from fem_runout.output.gather import gather_nodal
 
 if TYPE_CHECKING:
@@ -247,11 +248,9 @@ class PeakTracker:
 
     def _update(self, solver: Solver) -> None:
         """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
-        idx = flow_index(solver)
-        h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
-        self.peak_depth[idx] = np.maximum(self.peak_depth[idx], h)
-        self.peak_speed[idx] = np.maximum(self.peak_speed[idx],
-                                          nodal_speed(h, hu, hv, self.threshold))
+        h, hu, hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
+        fold_envelopes(solver.flow_dofs(), h, hu, hv, self.threshold, self.peak_depth,
+                       self.peak_speed)
 
     def functions(self) -> tuple[fem.Function, fem.Function]:
         """Return the envelopes as Q1 functions ``peak_depth``, ``peak_speed`` (collective).

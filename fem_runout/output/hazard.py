@@ -20,8 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fem_runout.callbacks import flow_index
-from fem_runout.output.diagnostics import nodal_speed
+from fem_runout.output.envelopes import fold_envelopes
 from fem_runout.output.gather import exact_global_sum, gather_nodal
 from fem_runout.output.sampling import bed_cosine_nodes, ghosted, sample_q1
 from fem_runout.terrain.dem import sample_grid
@@ -269,16 +268,11 @@ class HazardMaps:
 
     def step(self, solver: Solver, info: StepInfo) -> None:
         """Fold the current state into the envelopes (on the flow's dofs: zero elsewhere)."""
-        idx = flow_index(solver)
-        h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
         tr = self._track
-        speed = nodal_speed(h, hu, hv, self.threshold)
-        tr["peak_depth"][idx] = np.maximum(tr["peak_depth"][idx], h)
-        tr["peak_speed"][idx] = np.maximum(tr["peak_speed"][idx], speed)
-        tr["peak_pressure"][idx] = np.maximum(tr["peak_pressure"][idx], self.density * speed**2)
-        arrival = tr["arrival_time"][idx]
-        arrival[np.isnan(arrival) & (h > self.threshold)] = info.t
-        tr["arrival_time"][idx] = arrival
+        h, hu, hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
+        fold_envelopes(solver.flow_dofs(), h, hu, hv, self.threshold, tr["peak_depth"],
+                       tr["peak_speed"], tr["peak_pressure"], tr["arrival_time"], info.t,
+                       self.density)
 
     def output(self, solver: Solver, info: StepInfo) -> None:
         """Nothing to do at output times."""

@@ -38,8 +38,8 @@ import numpy as np
 from fem_runout.physics.bed_filter import heat_smoothed
 from fem_runout.physics.recovery import corrected_hessian
 
-__all__ = ["BedFrame", "SlopeGeometry", "lumped_gradient", "lumped_hessian", "nodal_gradient",
-           "slope_geometry"]
+__all__ = ["BedFrame", "SlopeGeometry", "downhill", "lumped_gradient", "lumped_hessian",
+           "nodal_gradient", "slope_geometry"]
 
 
 @dataclass(frozen=True)
@@ -56,15 +56,26 @@ class BedFrame:
     grad: np.ndarray
     cos: np.ndarray
     normal: np.ndarray
+    down: np.ndarray | None = None  # (n, 2) :func:`downhill` of ``grad``, if already known
 
     def take(self, nodes: np.ndarray) -> BedFrame:
         """Return the frame of a subset of the nodes (indices)."""
-        return BedFrame(self.grad[nodes], self.cos[nodes], np.asarray(self.normal)[nodes])
+        return BedFrame(self.grad[nodes], self.cos[nodes], np.asarray(self.normal)[nodes],
+                        None if self.down is None else self.down[nodes])
+
+    def downhill(self) -> np.ndarray:
+        """(n, 2) horizontal unit vectors straight down the bed (:func:`downhill`)."""
+        return downhill(self.grad) if self.down is None else self.down
 
     def stretch(self, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
         """``|U|/|u| = sqrt(1 + (n·∇Z)²)`` for the horizontal direction ``n`` of motion."""
         along = nx * self.grad[:, 0] + ny * self.grad[:, 1]
         return np.sqrt(1.0 + along * along)
+
+
+def downhill(grad: np.ndarray) -> np.ndarray:
+    """``-∇Z / |∇Z|``: the horizontal direction straight down the bed (0 on a flat bed)."""
+    return -grad / np.maximum(np.hypot(grad[:, 0], grad[:, 1]), 1e-300)[:, None]
 
 
 @numba.njit(cache=True)
@@ -77,7 +88,7 @@ def _normal_acceleration(hess, ux, uy, g, out):
         x, y = ux[i], uy[i]
         uhu = x * (hess[i, 0] * x + hess[i, 1] * y) + y * (hess[i, 1] * x + hess[i, 2] * y)
         v = g + uhu
-        out[i] = 0.0 if v < 0.0 else v
+        out[i] = v if (v > 0.0 or v != v) else 0.0  # np.maximum(v, 0.0), -0.0 included
 
 
 class SlopeGeometry:
@@ -98,6 +109,7 @@ class SlopeGeometry:
         self.curvature = bool(curvature)
         self.cos2 = 1.0 / (1.0 + self.grad[:, 0] ** 2 + self.grad[:, 1] ** 2)
         self.cos = np.sqrt(self.cos2)
+        self._down: np.ndarray | None = None
 
     def take(self, nodes: np.ndarray) -> SlopeGeometry:
         """Return the geometry of a subset of the nodes (indices)."""
@@ -121,7 +133,9 @@ class SlopeGeometry:
             normal = self.cos * self.normal_acceleration(ux, uy)
         else:
             normal = self.g * self.cos
-        return BedFrame(self.grad, self.cos, normal)
+        if self._down is None:  # the bed does not move: once per geometry
+            self._down = downhill(self.grad)
+        return BedFrame(self.grad, self.cos, normal, self._down)
 
 
 def nodal_gradient(cell_sum, C: np.ndarray, cell_nodes: np.ndarray, lumped_mass: np.ndarray,

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["antidiffusive", "gather_pair", "gather_state", "low_state", "new_state",
-           "scatter_state", "settle"]
+__all__ = ["antidiffusive", "gather_pair", "gather_state", "low_state", "min_ratio", "new_state",
+           "scatter_state", "settle", "wet_weighted_max"]
 
 
 @numba.njit(cache=True)
@@ -82,3 +82,29 @@ def settle(q, floor, kappa, kappa2):
             f = 2.0 * ht * ht / (ht * ht + kappa2)
             q[i, 1] *= f
             q[i, 2] *= f
+
+
+@numba.njit(cache=True)
+def min_ratio(m, c, n):
+    """``min(m[:n][c > 0] / c[:n][c > 0])``, or ``inf`` if no ``c[:n]`` is positive."""
+    best = np.inf
+    for i in range(n):
+        if c[i] > 0.0:
+            best = min(best, m[i] / c[i])
+    return best
+
+
+@numba.njit(cache=True)
+def wet_weighted_max(h, s, depth, n):
+    """``max(s[:n] * clip(h[:n] / depth, 0, 1))`` (0 if ``n == 0``; NaN if a product is NaN)."""
+    if n == 0:
+        return 0.0
+    best = -np.inf
+    for i in range(n):
+        w = h[i] / depth
+        w = 0.0 if w < 0.0 else (1.0 if w > 1.0 else w)
+        v = s[i] * w
+        if v != v:
+            return v
+        best = max(best, v)
+    return best

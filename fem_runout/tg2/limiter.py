@@ -200,7 +200,19 @@ class Limiter:
         relative ramp). The ramp replaces the former switch "a node of the cell is thinner
         than 1e3 κ". ``near``, ``far``: the patch extrema of :meth:`finish_bounds`.
         """
-        return np.clip(near / (self.thin_depth + THIN_RATIO * np.maximum(far, 0.0)), 0.0, 1.0)
+        out = np.empty(near.shape[0])
+        thin_ramp(near, far, self.thin_depth, THIN_RATIO, out)
+        return out
+
+
+@numba.njit(cache=True)
+def thin_ramp(near, far, thin_depth, ratio, out):
+    """``out = clip(near / (thin_depth + ratio max(far, 0)), 0, 1)`` (NaN stays NaN)."""
+    for i in range(out.shape[0]):
+        f = far[i]
+        f = f if (f > 0.0 or f != f) else 0.0  # np.maximum(f, 0.0), -0.0 included
+        v = near[i] / (thin_depth + ratio * f)
+        out[i] = 0.0 if v < 0.0 else (1.0 if v > 1.0 else v)
 
 
 @numba.njit(cache=True)

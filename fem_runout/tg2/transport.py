@@ -29,9 +29,11 @@ from fem_runout.tg2.compact import (
     antidiffusive,
     gather_state,
     low_state,
+    min_ratio,
     new_state,
     scatter_state,
     settle,
+    wet_weighted_max,
 )
 from fem_runout.tg2.high_order import HighOrder
 from fem_runout.tg2.limiter import Limiter
@@ -166,15 +168,12 @@ class Transport:
         cap = self._sums[:, 3].copy()
         nodes = a.nodes
         for side in a.sides():
-            if side.kind == "open":
+            if side.kind == "open" and side.nodes.size:
                 i = nodes[side.nodes]
                 un = self.ux.x.array[i] * side.normal[:, 0] + self.uy.x.array[i] * side.normal[:, 1]
                 cap[side.nodes] += side.weight * np.maximum(un, 0.0)
-        own = slice(0, a.n_owned_nodes)
-        c, m = cap[own], self._arrays()["mass"][own]
-        ratio = m[c > 0.0] / c[c > 0.0]
-        return np.array([-float(ratio.min()) if ratio.size else -np.inf,
-                         self._local_slope() if with_slope else 0.0])
+        ratio = min_ratio(self._arrays()["mass"], cap, a.n_owned_nodes)
+        return np.array([-ratio, self._local_slope() if with_slope else 0.0])
 
     def limits_from(self, top: np.ndarray, with_slope: bool = True
                     ) -> float | tuple[float, float]:
@@ -190,10 +189,9 @@ class Transport:
         """
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
-        own = slice(0, self.disc.n_owned_nodes)
-        wet = np.clip(self.h.x.array[own] / self.wet_depth, 0.0, 1.0)  # continuous wet weight
-        s = self._slope[own] * wet
-        return float(s.max()) if s.size else 0.0
+        # the continuous wet weight min(1, h/δ) of the owned nodes
+        return float(wet_weighted_max(self.h.x.array, self._slope, self.wet_depth,
+                                      self.disc.n_owned_nodes))
 
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L and capacities of the state, on the active set."""
@@ -291,7 +289,7 @@ class Transport:
         """
         flux = np.zeros_like(q)
         for side in self.active.sides():
-            if side.kind != "open":
+            if side.kind != "open" or not side.nodes.size:
                 continue
             i = side.nodes
             un = np.maximum(u[0, i] * side.normal[:, 0] + u[1, i] * side.normal[:, 1], 0.0)
@@ -323,7 +321,7 @@ class Transport:
         owned = a.n_owned_nodes
         out = 0.0
         for side in sides:
-            if side.kind == "open":
+            if side.kind == "open" and side.nodes.size:
                 own = side.nodes < owned
                 i = side.nodes[own]
                 n = side.normal[own]

@@ -237,7 +237,7 @@ class FrictionLaw:
         if bed is None:
             return dt * self.gravity * self.mu * np.maximum(h, 0.0)
         norm = np.hypot(qx, qy)
-        down = -bed.grad / np.maximum(np.hypot(bed.grad[:, 0], bed.grad[:, 1]), 1e-300)[:, None]
+        down = bed.downhill()
         safe = np.where(norm > 0.0, norm, 1.0)
         nx = np.where(norm > 0.0, qx / safe, down[:, 0])
         ny = np.where(norm > 0.0, qy / safe, down[:, 1])
