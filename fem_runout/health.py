@@ -13,7 +13,7 @@ import numpy as np
 
 from fem_runout.callbacks import flow_index
 
-__all__ = ["locate", "reduce_flag", "state_flag"]
+__all__ = ["locate", "motion_terms", "reduce_flag", "state_flag"]
 
 
 @numba.njit(cache=True)
@@ -81,3 +81,30 @@ def locate(solver, depth: float) -> str:
     if worst[1] is None or worst[0] <= 0:
         return ""
     return f" near (x, y) = ({worst[1][0]:.6g}, {worst[1][1]:.6g})"
+
+
+@numba.njit(cache=True)
+def motion_terms(nodes, h, hu, hv, mass, depth, energy, terms):
+    """Speed and kinetic-energy terms of the nodes deeper than ``depth`` (one pass).
+
+    ``terms[:k] = m q² / h`` over those nodes (``k`` returned; none unless ``energy``) and
+    the largest ``q² / h²``; both maxima as ``np.max`` (NaN wins). Returns ``(q²/h² max or
+    -inf if no node is deeper, terms max or 0, k)``.
+    """
+    top, big, k = -np.inf, 0.0, 0
+    for n in range(nodes.shape[0]):
+        i = nodes[n]
+        hi = h[i]
+        if not hi > depth:
+            continue
+        q2 = hu[i] * hu[i] + hv[i] * hv[i]
+        r = q2 / (hi * hi)
+        if top == top and (r != r or r > top):  # np.max: the first NaN stays
+            top = r
+        if energy:
+            t = mass[i] * q2 / hi
+            terms[k] = t
+            k += 1
+            if big == big and (t != t or t > big):
+                big = t
+    return top, big, k

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from fem_runout.callbacks import Callback, StepInfo, flow_index
+from fem_runout.callbacks import Callback, StepInfo
 from fem_runout.errors import RunInterrupted, SimulationError
 from fem_runout.exact_sum import exact_total
-from fem_runout.health import locate
+from fem_runout.health import locate, motion_terms
 from fem_runout.solver_api import Solver
 
 
@@ -74,14 +74,12 @@ def motion(solver: Solver, depth: float, energy: bool = False) -> tuple[float, f
 
 def local_motion(solver: Solver, depth: float, energy: bool) -> tuple[np.ndarray, np.ndarray]:
     """Return this rank's part of :func:`motion` (local): ``([speed, max], energy terms)``."""
-    idx = flow_index(solver)  # the state is zero elsewhere
-    h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
-    wet = h > depth
-    q2 = hu[wet] ** 2 + hv[wet] ** 2
-    terms = np.asarray(solver.lumped_mass)[idx][wet] * q2 / h[wet] if energy else q2[:0]
-    top = np.array([float(np.sqrt(np.max(q2 / h[wet] ** 2))) if wet.any() else 0.0,
-                    float(np.max(terms, initial=0.0))])
-    return top, terms
+    nodes = np.asarray(solver.flow_dofs(), dtype=np.int64)  # the state is zero elsewhere
+    h, hu, hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
+    terms = np.empty(nodes.size if energy else 0)
+    mass = np.asarray(solver.lumped_mass, dtype=np.float64)
+    speed2, big, k = motion_terms(nodes, h, hu, hv, mass, float(depth), energy, terms)
+    return np.array([0.0 if speed2 == -math.inf else math.sqrt(speed2), big]), terms[:k]
 
 
 def finish_motion(solver: Solver, top: np.ndarray, terms: np.ndarray, energy: bool

@@ -191,3 +191,29 @@ def test_envelopes_fold_like_the_array_formulas():
     only = {k: start[k].copy() for k in ("depth", "speed")}
     fold_envelopes(nodes, h, hu, hv, thr, only["depth"], only["speed"])
     assert _same(only["depth"], ref["depth"]) and _same(only["speed"], ref["speed"])
+
+
+@pytest.mark.parametrize("energy", [True, False])
+def test_motion_terms_are_the_formulas(energy):
+    """The runner's speed and kinetic-energy terms (one pass) against the array formulas."""
+    from fem_runout.health import motion_terms
+
+    rng = np.random.default_rng(10)
+    n = 80
+    h, hu, hv, m = np.abs(_data(rng, n)), _data(rng, n), _data(rng, n), rng.uniform(1, 9, n)
+    nodes = np.sort(rng.permutation(n)[:60])
+    depth = 0.01
+    wet = h[nodes] > depth
+    q2 = hu[nodes][wet] ** 2 + hv[nodes][wet] ** 2
+    terms = np.empty(nodes.size if energy else 0)
+    top, big, k = motion_terms(nodes, h, hu, hv, m, depth, energy, terms)
+    assert top == np.max(q2 / h[nodes][wet] ** 2)
+    if energy:
+        ref = m[nodes][wet] * q2 / h[nodes][wet]
+        assert k == wet.sum() and _same(terms[:k], ref) and big == np.max(ref, initial=0.0)
+    else:
+        assert k == 0 and big == 0.0
+    assert motion_terms(nodes, np.zeros(n), hu, hv, m, depth, energy, terms)[:3:2] == \
+        (-np.inf, 0)
+    hu[nodes[wet.argmax()]] = np.nan  # a NaN wins, as in np.max
+    assert np.isnan(motion_terms(nodes, h, hu, hv, m, depth, energy, terms)[0])
