@@ -157,8 +157,11 @@ def test_reductions_and_ramps_are_the_formulas():
     grad[3] = 0.0
     ref = -grad / np.maximum(np.hypot(grad[:, 0], grad[:, 1]), 1e-300)[:, None]
     assert _same(downhill(grad), ref) and np.all(downhill(grad)[3] == 0.0)
-    frame = BedFrame(grad, np.ones(40), np.ones(40), downhill(grad))
-    assert _same(frame.take(np.arange(5, 9)).downhill(), ref[5:9])
+    frame = BedFrame(grad, np.ones(40), np.ones(40))
+    assert _same(frame.downhill(), ref) and _same(frame.take(np.arange(5, 9)).downhill(), ref[5:9])
+    geometry = SlopeGeometry(grad, np.zeros((40, 3)), 9.81)
+    first = geometry.frame().downhill()
+    assert _same(first, ref) and geometry.frame().downhill() is first  # formed once
 
 
 def test_envelopes_fold_like_the_array_formulas():

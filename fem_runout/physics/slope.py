@@ -56,16 +56,16 @@ class BedFrame:
     grad: np.ndarray
     cos: np.ndarray
     normal: np.ndarray
-    down: np.ndarray | None = None  # (n, 2) :func:`downhill` of ``grad``, if already known
+    #: the geometry this frame's ``grad`` belongs to (it keeps :func:`downhill` once formed)
+    geometry: SlopeGeometry | None = None
 
     def take(self, nodes: np.ndarray) -> BedFrame:
         """Return the frame of a subset of the nodes (indices)."""
-        return BedFrame(self.grad[nodes], self.cos[nodes], np.asarray(self.normal)[nodes],
-                        None if self.down is None else self.down[nodes])
+        return BedFrame(self.grad[nodes], self.cos[nodes], np.asarray(self.normal)[nodes])
 
     def downhill(self) -> np.ndarray:
         """(n, 2) horizontal unit vectors straight down the bed (:func:`downhill`)."""
-        return downhill(self.grad) if self.down is None else self.down
+        return downhill(self.grad) if self.geometry is None else self.geometry.downhill()
 
     def stretch(self, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
         """``|U|/|u| = sqrt(1 + (n·∇Z)²)`` for the horizontal direction ``n`` of motion."""
@@ -133,9 +133,13 @@ class SlopeGeometry:
             normal = self.cos * self.normal_acceleration(ux, uy)
         else:
             normal = self.g * self.cos
-        if self._down is None:  # the bed does not move: once per geometry
+        return BedFrame(self.grad, self.cos, normal, self)
+
+    def downhill(self) -> np.ndarray:
+        """:func:`downhill` of the nodes, formed once (the bed does not move)."""
+        if self._down is None:
             self._down = downhill(self.grad)
-        return BedFrame(self.grad, self.cos, normal, self._down)
+        return self._down
 
 
 def nodal_gradient(cell_sum, C: np.ndarray, cell_nodes: np.ndarray, lumped_mass: np.ndarray,
