@@ -36,8 +36,6 @@ def test_state_passes_give_the_array_formulas_bits(seed):
     assert _same(compact.new_state(q_low, corr, m), q_low + corr / m[:, None])
     assert _same(compact.low_state(q_low, sums, boundary, m, dt),
                  q_low + dt * (sums + boundary) / m[:, None])
-    x, y, nodes = _data(rng, 80), _data(rng, 80), rng.permutation(80)[:n]
-    assert _same(compact.gather_pair(x, y, nodes, np.empty((2, n))), np.stack([x[nodes], y[nodes]]))
 
 
 def test_velocity_on_a_subset_writes_the_same_velocities():

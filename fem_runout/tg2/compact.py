@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["antidiffusive", "gather_pair", "gather_state", "low_state", "min_ratio", "new_state",
+__all__ = ["antidiffusive", "gather_state", "low_state", "min_ratio", "new_state",
            "scatter_state", "settle", "wet_weighted_max"]
 
 
@@ -29,16 +29,6 @@ def scatter_state(h, hu, hv, nodes, q):
     for k in range(nodes.size):
         i = nodes[k]
         h[i], hu[i], hv[i] = q[k, 0], q[k, 1], q[k, 2]
-
-
-@numba.njit(cache=True)
-def gather_pair(x, y, nodes, out):
-    """``out = np.stack([x[nodes], y[nodes]])`` into a (2, n) buffer."""
-    for k in range(nodes.size):
-        i = nodes[k]
-        out[0, k] = x[i]
-        out[1, k] = y[i]
-    return out
 
 
 @numba.njit(cache=True)
