@@ -37,7 +37,7 @@ import numpy as np
 from fem_runout.active import ActiveSet
 from fem_runout.mesh import Discretization
 from fem_runout.tg2 import fct
-from fem_runout.tg2.low_order import bar_state_extrema, pair_coefficients
+from fem_runout.tg2.low_order import bar_state_extrema, pair_coefficients, pair_norms
 
 #: Relaxation of the momentum bounds, as a fraction of their local range. Strict momentum
 #: bounds clip the momentum peak of a dry-bed rarefaction (Ritter L1 0.139 → 0.216 at
@@ -96,7 +96,7 @@ class Limiter:
                 "owned": region.compact_cells("owned"),
                 "local": region.compact_cells("cells"),
                 "beta": np.ascontiguousarray(self.beta_all[region.cells]),
-                "beta_norm": np.sqrt(np.square(self.beta_all[region.cells]).sum(axis=2)),
+                "beta_norm": pair_norms(self.beta_all[region.cells]),
                 "mass": self.disc.lumped_mass[region.nodes],
                 "per_cell6": np.empty((n, 4, 6)), "per_cell3": np.empty((n, 4, 3)),
             }

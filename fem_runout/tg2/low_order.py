@@ -43,12 +43,18 @@ def bank_drop(h, drop, delta):
     return (1.0 - min(1.0, max(h, 0.0) / (delta + BANK_SLOPE * drop))) * drop
 
 
+@numba.njit(cache=True, inline="always")
+def _scale(h, kappa):
+    """:func:`velocity_factor` of one node (the same operations)."""
+    hp = max(h, 0.0)
+    hk = max(h, kappa)
+    return 2.0 * hp / (hp * hp + hk * hk)
+
+
 @numba.njit(cache=True)
 def nodal_velocity(h, qx, qy, kappa, ux, uy):  # noqa: D103 - documented in velocity()
     for i in range(h.shape[0]):
-        hp = max(h[i], 0.0)
-        hk = max(h[i], kappa)
-        f = 2.0 * hp / (hp * hp + hk * hk)
+        f = _scale(h[i], kappa)
         ux[i] = qx[i] * f
         uy[i] = qy[i] * f
 
@@ -61,9 +67,7 @@ def velocity_on(h, qx, qy, nodes, kappa, ux, uy, ux_on, uy_on):
     """
     for k in range(nodes.shape[0]):
         i = nodes[k]
-        hp = max(h[i], 0.0)
-        hk = max(h[i], kappa)
-        f = 2.0 * hp / (hp * hp + hk * hk)
+        f = _scale(h[i], kappa)
         ux_on[k] = qx[i] * f
         uy_on[k] = qy[i] * f
         ux[i] = ux_on[k]
