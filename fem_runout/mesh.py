@@ -16,7 +16,7 @@ from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
 from fem_runout import cellsum
-from fem_runout.shared_nodes import SharedRows
+from fem_runout.shared_nodes import SharedRows, sharing_ranks
 
 SIDES = ("left", "right", "bottom", "top")
 SIDE_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "bottom": (0.0, -1.0), "top": (0.0, 1.0)}
@@ -292,65 +292,30 @@ class GhostReducer:
     """Max/min reduction of nodal values over the ranks that share a node.
 
     dolfinx scatters only add or insert; the FCT bounds need the extremum over a node's whole
-    patch, which straddles ranks. Ghost entries are sent to their owners, reduced there, and the
-    result is sent back to the ghosts (exact: max, min and copies). :meth:`on` gives the
-    exchanges of arrays that hold a subset of the local nodes (the active set's).
+    patch, which straddles ranks. Every rank sends its values at its shared nodes to the other
+    ranks holding them and reduces what it receives (exact: max and min; one message).
+    :meth:`on` gives the exchanges of arrays that hold a subset of the local nodes (the active
+    set's).
     """
 
     def __init__(self, disc: Discretization) -> None:
         imap = disc.V.dofmap.index_map
         self.disc = disc
         self.comm = disc.comm
-        n_own = imap.size_local
-        ghosts, owners = np.asarray(imap.ghosts), np.asarray(imap.owners)
-        order = np.argsort(owners, kind="stable")
-        self.send_local = n_own + order
-        self.send_counts = np.bincount(owners, minlength=self.comm.size).astype(np.int64)
-        recv_counts = np.array(self.comm.alltoall(self.send_counts.tolist()), dtype=np.int64)
-        self.recv_counts = recv_counts
-        recv = np.empty(int(recv_counts.sum()), dtype=np.int64)
-        self.comm.Alltoallv(
-            [ghosts[order].astype(np.int64),
-             (self.send_counts, np.concatenate([[0], np.cumsum(self.send_counts)[:-1]]))],
-            [recv, (recv_counts, np.concatenate([[0], np.cumsum(recv_counts)[:-1]]))])
-        self.recv_local = (recv - imap.local_range[0]).astype(np.int64)
-
-    def _exchange(self, send: np.ndarray, recv: np.ndarray, back: bool = False,
-                  width: int = 1) -> None:
-        """Alltoallv of ``width`` values per ghost: to the owners, or ``back`` to the ghosts."""
-        key = (back, width)
-        plan = self.__dict__.setdefault("_plans", {})
-        if key not in plan:
-            out, into = (self.recv_counts, self.send_counts) if back else \
-                (self.send_counts, self.recv_counts)
-            out, into = out * width, into * width
-            plan[key] = (out, np.concatenate([[0], np.cumsum(out)[:-1]]),
-                         into, np.concatenate([[0], np.cumsum(into)[:-1]]))
-        out, sd, into, rd = plan[key]
-        self.comm.Alltoallv([send, (out, sd)], [recv, (into, rd)])
+        self.shared, self.counts = sharing_ranks(
+            self.comm, imap.size_local, np.asarray(imap.ghosts), np.asarray(imap.owners),
+            int(imap.local_range[0]))
+        self._all = SharedRows(self.comm, self.shared, self.counts)
 
     def reduce(self, values: np.ndarray, op: str) -> None:
         """Reduce ``values`` in place with ``op`` = "max" or "min" over the sharing ranks.
 
         Args:
             values: (n,) local values (owned then ghosts), or (k, n): k arrays reduced
-                together (one exchange each way).
+                together (one exchange).
             op: "max" or "min".
         """
-        if self.comm.size == 1:
-            return
-        rows = values if values.ndim == 2 else values[np.newaxis]  # a view: reduced in place
-        k = rows.shape[0]
-        send = np.ascontiguousarray(rows[:, self.send_local].T)
-        recv = np.empty((self.recv_local.size, k))
-        self._exchange(send, recv, width=k)
-        ufunc = np.maximum if op == "max" else np.minimum
-        for r in range(k):
-            ufunc.at(rows[r], self.recv_local, recv[:, r])
-        back = np.ascontiguousarray(rows[:, self.recv_local].T)
-        ghosts = np.empty((self.send_local.size, k))
-        self._exchange(back, ghosts, back=True, width=k)
-        rows[:, self.send_local] = ghosts.T
+        self._all.reduce(values, op)
 
     def on(self, nodes: np.ndarray) -> SharedRows:
         """Return the exchanges of compact arrays ``a``, ``a[k]`` the value at ``nodes[k]``.
@@ -360,15 +325,10 @@ class GhostReducer:
         """
         inv = np.full(self.disc.coords.shape[0], -1, dtype=np.int64)
         inv[nodes] = np.arange(nodes.size)
-        ranks = np.arange(self.comm.size)
-        ghost = inv[self.send_local]
-        owned = inv[self.recv_local]
-        keep_g, keep_o = ghost >= 0, owned >= 0
-        return SharedRows(
-            self.comm, ghost[keep_g],
-            np.bincount(np.repeat(ranks, self.send_counts)[keep_g], minlength=ranks.size),
-            owned[keep_o],
-            np.bincount(np.repeat(ranks, self.recv_counts)[keep_o], minlength=ranks.size))
+        rows = inv[self.shared]
+        keep = rows >= 0
+        ranks = np.repeat(np.arange(self.comm.size), self.counts)[keep]
+        return SharedRows(self.comm, rows[keep], np.bincount(ranks, minlength=self.comm.size))
 
 
 def rectangle_facets(disc: Discretization) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:

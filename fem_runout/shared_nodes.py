@@ -6,7 +6,9 @@ move every ghost of the whole vectors, so their cost grows with the partition's 
 the flow: a partition into stripes that balances a moving flow (:mod:`fem_runout.partition`)
 multiplied the ghosts and made every exchange dearer. :class:`SharedRows` exchanges only the
 set's shared nodes, in compact arrays (row ``k`` is the set's node ``nodes[k]``), with one
-``Alltoallv`` each way:
+``Alltoallv`` per exchange: every rank sends its part to every rank sharing the node and
+folds what it receives as they do (before session 37 the owners folded and sent the result
+back, two messages and twice the waits per exchange):
 
 - :meth:`SharedRows.reduce`: max or min over the ranks sharing a node (exact);
 - :meth:`SharedRows.cell_sum`: the nodal sums of cell contributions with the slots of
@@ -14,7 +16,8 @@ set's shared nodes, in compact arrays (row ``k`` is the set's node ``nodes[k]``)
   slots is exact and the total, in a fixed order, is the same bits on any partition).
 
 Every rank sharing a node must agree that it is in the set (the active set's hops are reduced
-over the ranks, so they do); then the two ends list the same nodes in the same order.
+over the ranks, so they do); then the two ends list the same nodes in the same (global)
+order (:func:`sharing_ranks`).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["SharedRows"]
+__all__ = ["SharedRows", "sharing_ranks"]
 
 
 @numba.njit(cache=True)
@@ -36,21 +39,15 @@ def _take(values, rows, out):
 
 @numba.njit(cache=True)
 def _fold(values, rows, recv, is_max):
-    """``values[r, rows[m]] = max (or min) of itself and recv[m, r]``."""
+    """``values[r, rows[m]] = max (or min) of itself and recv[m, r]``; NaN wins (any order)."""
     for m in range(rows.size):
         i = rows[m]
         for r in range(values.shape[0]):
-            v = recv[m, r]
-            if (v > values[r, i]) if is_max else (v < values[r, i]):
+            v, x = recv[m, r], values[r, i]
+            if x != x:
+                continue
+            if v != v or ((v > x) if is_max else (v < x)):
                 values[r, i] = v
-
-
-@numba.njit(cache=True)
-def _put(values, rows, recv):
-    """``values[r, rows[m]] = recv[m, r]``."""
-    for m in range(rows.size):
-        for r in range(values.shape[0]):
-            values[r, rows[m]] = recv[m, r]
 
 
 @numba.njit(cache=True)
@@ -65,7 +62,7 @@ def _pack_slots(src, flat, rows, send):
 
 @numba.njit(cache=True)
 def _fold_slots(src, flat, uniq, where, recv, acc, out):
-    """Owned shared rows: own slots plus the received ones, totalled in the slots' order.
+    """Shared rows: own slots plus the received ones, totalled in the slots' order.
 
     ``acc[u]`` takes the slots of row ``uniq[u]``, ``recv[m]`` is added to ``acc[where[m]]``
     (each slot is non-zero on one rank only: exact), and ``out[uniq[u], c] = ((0 + b_0) +
@@ -85,60 +82,108 @@ def _fold_slots(src, flat, uniq, where, recv, acc, out):
             out[uniq[u], c] = total
 
 
-@numba.njit(cache=True)
-def _put_rows(out, rows, recv):
-    """``out[rows[m]] = recv[m]``."""
-    for m in range(rows.size):
-        for c in range(out.shape[1]):
-            out[rows[m], c] = recv[m, c]
-
-
 def _displacements(counts: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+
+
+def sharing_ranks(comm: MPI.Comm, n_owned: int, ghosts: np.ndarray, owners: np.ndarray,
+                  first: int) -> tuple[np.ndarray, np.ndarray]:
+    """Local nodes shared with each other rank, grouped by rank, in global order (collective).
+
+    Rank ``p`` shares a node when it holds it: it owns it, holds it as a ghost of this rank's,
+    or holds as a ghost a node this rank also holds as a ghost (a node where three ranks' cells
+    meet; its owner tells the holders about each other). Both ends of a pair list the same
+    nodes in the same (global) order, so one ``Alltoallv`` pairs the rows. Called once per mesh.
+
+    Args:
+        comm: The mesh's communicator.
+        n_owned: Owned nodes of this rank (local ``0 .. n_owned - 1``).
+        ghosts: (n_ghosts,) global indices of the ghost nodes (local ``n_owned + k``).
+        owners: (n_ghosts,) their owner ranks.
+        first: Global index of the first owned node.
+
+    Returns:
+        ``(nodes, counts)``: local nodes grouped by rank, and how many each rank shares.
+    """
+    size = comm.size
+    ghosts, owners = np.asarray(ghosts, np.int64), np.asarray(owners, np.int64)
+    order = np.argsort(owners, kind="stable")
+    parts = np.split(ghosts[order], np.cumsum(np.bincount(owners, minlength=size))[:-1])
+    held = [np.asarray(g, np.int64) - first for g in comm.alltoall(parts)]  # owned, held by p
+    loc = np.concatenate(held)
+    src = np.repeat(np.arange(size), [h.size for h in held])
+    o = np.argsort(loc, kind="stable")
+    loc, src = loc[o], src[o]
+    tell: list[list[tuple[int, int]]] = [[] for _ in range(size)]
+    for s, e in _runs(loc):  # nodes held as ghosts by two or more ranks
+        for a in range(s, e):
+            tell[src[a]] += [(int(loc[s]) + first, int(src[b])) for b in range(s, e) if b != a]
+    told = np.concatenate([np.asarray(t, np.int64).reshape(-1, 2)
+                           for t in comm.alltoall([np.asarray(t, np.int64) for t in tell])])
+    by_global = np.argsort(ghosts, kind="stable")
+    also = n_owned + by_global[np.searchsorted(ghosts[by_global], told[:, 0])]
+    glob = np.concatenate([first + np.arange(n_owned), ghosts])
+    groups = []
+    for p in range(size):
+        mine = np.unique(np.concatenate([held[p], n_owned + np.flatnonzero(owners == p),
+                                         also[told[:, 1] == p]]))
+        groups.append(mine[np.argsort(glob[mine], kind="stable")])
+    return np.concatenate(groups).astype(np.int64), np.array([g.size for g in groups], np.int64)
+
+
+def _runs(sorted_values: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, end)`` of the runs of equal values at least two long."""
+    if sorted_values.size == 0:
+        return []
+    cut = np.flatnonzero(sorted_values[1:] != sorted_values[:-1]) + 1
+    starts = np.concatenate([[0], cut])
+    ends = np.concatenate([cut, [sorted_values.size]])
+    return [(int(s), int(e)) for s, e in zip(starts, ends, strict=True) if e - s > 1]
 
 
 class SharedRows:
     """Exchanges over the shared nodes of a set of local nodes (compact arrays).
 
+    Each rank sends every rank sharing a node its own part (slot contributions, values) and
+    folds what it receives the same way the others do: one ``Alltoallv`` per exchange, and
+    every rank holding a node ends with the same bits.
+
     Args:
         comm: The mesh's communicator.
-        ghost_rows: Compact rows of the set's ghost nodes, grouped by owner rank.
-        ghost_counts: (size,) how many of them each rank owns.
-        owned_rows: Compact rows of the set's owned nodes that other ranks hold as ghosts,
-            grouped by those ranks (a node appears once per rank holding it).
-        owned_counts: (size,) how many rows each rank holds as ghosts.
+        rows: Compact rows of the set's shared nodes, grouped by the rank they are shared
+            with (a row appears once per such rank), in the order both ends agree on
+            (:func:`sharing_ranks`).
+        counts: (size,) how many rows each rank shares.
     """
 
-    def __init__(self, comm: MPI.Comm, ghost_rows: np.ndarray, ghost_counts: np.ndarray,
-                 owned_rows: np.ndarray, owned_counts: np.ndarray) -> None:
+    def __init__(self, comm: MPI.Comm, rows: np.ndarray, counts: np.ndarray) -> None:
         self.comm = comm
-        self.ghost_rows = np.ascontiguousarray(ghost_rows, dtype=np.int64)
-        self.owned_rows = np.ascontiguousarray(owned_rows, dtype=np.int64)
-        self._counts = (np.asarray(ghost_counts, np.int64), np.asarray(owned_counts, np.int64))
-        self._uniq, self._where = np.unique(self.owned_rows, return_inverse=True)
-        self._plans: dict[tuple[bool, int], tuple] = {}
+        self.rows = np.ascontiguousarray(rows, dtype=np.int64)
+        self._counts = np.asarray(counts, np.int64)
+        self._uniq, self._where = np.unique(self.rows, return_inverse=True)
+        self._plans: dict[int, tuple] = {}
 
     @property
     def serial(self) -> bool:
         """True on one rank (nothing to exchange)."""
         return self.comm.size == 1
 
-    def _send(self, data: np.ndarray, to_owners: bool) -> np.ndarray:
-        """Alltoallv of rows of ``data`` to the owners (or back to the ghosts)."""
+    def _send(self, data: np.ndarray) -> np.ndarray:
+        """Alltoallv of rows of ``data`` to the ranks sharing them; the same rows come back."""
         width = int(np.prod(data.shape[1:], dtype=np.int64))
-        key = (to_owners, width)
-        if key not in self._plans:
-            out, into = self._counts if to_owners else self._counts[::-1]
-            self._plans[key] = (out * width, _displacements(out * width),
-                                into * width, _displacements(into * width), int(into.sum()))
-        out, sd, into, rd, n = self._plans[key]
-        recv = np.empty((n,) + data.shape[1:])
-        self.comm.Alltoallv([np.ascontiguousarray(data), (out, sd), MPI.DOUBLE],
-                            [recv, (into, rd), MPI.DOUBLE])
+        if width not in self._plans:
+            counts = self._counts * width
+            self._plans[width] = (counts, _displacements(counts))
+        counts, displ = self._plans[width]
+        recv = np.empty_like(data)
+        self.comm.Alltoallv([np.ascontiguousarray(data), (counts, displ), MPI.DOUBLE],
+                            [recv, (counts, displ), MPI.DOUBLE])
         return recv
 
     def reduce(self, values: np.ndarray, op: str) -> None:
         """Reduce ``values`` in place with ``op`` = "max" or "min" over the sharing ranks.
+
+        A NaN on any rank holding a node gives NaN there on all of them.
 
         Args:
             values: (n,) compact values, or (k, n): k arrays reduced together.
@@ -147,12 +192,9 @@ class SharedRows:
         if self.serial:
             return
         rows = values if values.ndim == 2 else values[np.newaxis]  # a view: reduced in place
-        send = np.empty((self.ghost_rows.size, rows.shape[0]))
-        _take(rows, self.ghost_rows, send)
-        _fold(rows, self.owned_rows, self._send(send, True), op == "max")
-        back = np.empty((self.owned_rows.size, rows.shape[0]))
-        _take(rows, self.owned_rows, back)
-        _put(rows, self.ghost_rows, self._send(back, False))
+        send = np.empty((self.rows.size, rows.shape[0]))
+        _take(rows, self.rows, send)
+        _fold(rows, self.rows, self._send(send), op == "max")
 
     def cell_sum(self, src: np.ndarray, flat: np.ndarray, out: np.ndarray,
                  also_max: np.ndarray | None = None) -> None:
@@ -162,26 +204,21 @@ class SharedRows:
             src: (n, n_slots) slot sources of the rows (:func:`fem_runout.cellsum.sources`).
             flat: (n_cells * 4, bs) this rank's contributions.
             out: (n, bs) the totals of this rank's slots; the shared rows are overwritten with
-                the totals over all ranks (the owners' sums, sent back to the ghosts).
+                the totals over all ranks (every slot from the rank that filled it, totalled
+                in the slots' order: the one-rank formula on every rank holding the row).
             also_max: (k, n) values reduced in place (max over the sharing ranks) in the same
-                messages, as :meth:`reduce` would.
+                message, as :meth:`reduce` would.
         """
         if self.serial:
             return
         n_slots, bs = src.shape[1], flat.shape[1]
         vals = np.empty((0, out.shape[0])) if also_max is None else also_max
         k, width = vals.shape[0], n_slots * bs
-        send = np.empty((self.ghost_rows.size, width + k))
-        _pack_slots(src, flat, self.ghost_rows, send[:, :width].reshape(-1, n_slots, bs))
-        _take(vals, self.ghost_rows, send[:, width:])
-        recv = self._send(send, True)
+        send = np.empty((self.rows.size, width + k))
+        _pack_slots(src, flat, self.rows, send[:, :width].reshape(-1, n_slots, bs))
+        _take(vals, self.rows, send[:, width:])
+        recv = self._send(send)
         acc = np.empty((self._uniq.size, n_slots, bs))
-        _fold_slots(src, flat, self._uniq, self._where, recv[:, :width].reshape(-1, n_slots, bs),
-                    acc, out)
-        _fold(vals, self.owned_rows, recv[:, width:], True)
-        back = np.empty((self.owned_rows.size, bs + k))
-        back[:, :bs] = out[self.owned_rows]
-        _take(vals, self.owned_rows, back[:, bs:])
-        got = self._send(back, False)
-        _put_rows(out, self.ghost_rows, got[:, :bs])
-        _put(vals, self.ghost_rows, got[:, bs:])
+        _fold_slots(src, flat, self._uniq, self._where,
+                    np.ascontiguousarray(recv[:, :width]).reshape(-1, n_slots, bs), acc, out)
+        _fold(vals, self.rows, recv[:, width:], True)
