@@ -11,10 +11,10 @@ the release is routed downhill, and a mass stops where the energy line, falling 
 travel angle ``α`` (Heim's *Fahrböschung*) along its path, meets the ground
 (:func:`reachable`). With ``α`` = :data:`REACH_ANGLE_DEG` (below the run-out angles of
 avalanches, 18-30°, and of most debris flows) the estimate holds the path. The mesh is then
-cut across the path's main direction (the principal axis of the path's cells) into pieces of
-equal length along it (:func:`strip_owners`), :data:`PIECES_PER_RANK` per rank, dealt to the
-ranks in turn (0, 1, 0, 1 on 2 ranks), so that every rank holds flow both in the release and
-in the run-out zone.
+cut across the path's main direction (the principal axis of the path's cells) into pieces
+holding equal shares of the path's cells (:func:`strip_owners`), :data:`PIECES_PER_RANK` per
+rank, dealt to the ranks in turn (0, 1, 0, 1 on 2 ranks), so that every rank holds flow both
+in the release and in the run-out zone.
 
 On avaKot (TG2-PC, 2 ranks) the owned active cells summed over the run are 4.96 and 8.22
 million with DOLFINx's partition and with a cut at the median of the path's cells (the flow
@@ -27,7 +27,10 @@ split: 1.21 with two pieces, 1.05 with four dealt in turn (2 per rank; 1.08 with
 cost little now that a step exchanges only the flow's shared nodes
 (:mod:`fem_runout.shared_nodes`; with DOLFINx's whole-vector scatters 8 stripes made the run
 slower). Cutting the path lengthwise balanced the path's cells but not the flow (the wide
-release fan lay on one side).
+release fan lay on one side). Session 37 (the flow of that time): four pieces of equal length
+gave the ranks 11.78 and 10.81 million owned active cells (score 1.050; on 3 ranks 1.115),
+four pieces with equal shares of the path's cells 11.50 and 11.09 million (1.039; on 3 ranks
+1.106); a mirrored deal (0, 1, 1, 0) scored 1.074.
 
 The partition changes only which rank computes which cell: the results do not depend on it
 (tested on 1, 2 and 3 ranks). It applies to cases with ``initial.release``; cases without a
@@ -108,17 +111,18 @@ def reachable(z: np.ndarray, source: np.ndarray, spacing: tuple[float, float],
 
 
 def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) -> np.ndarray:
-    """Rank of every cell: pieces of equal length along the weighted cells' main axis.
+    """Rank of every cell: pieces with equal shares of the weight along the cells' main axis.
 
     Args:
         x: Cell centre x [m].
         y: Cell centre y [m].
         weight: Non-negative weight per cell (1 on the estimated path).
-        nparts: Number of ranks.
+        nparts: Number of pieces.
 
     Returns:
-        (n,) int32 owner ranks: ``nparts`` pieces in order along the path (cells beyond its
-        ends go to the first and last piece).
+        (n,) int32 piece of every cell: ``nparts`` pieces in order along the path, cut where
+        the weight summed along it reaches ``k / nparts`` of the total (cells beyond the
+        path's ends go to the first and last piece).
     """
     w = weight / weight.sum()
     mx, my = float(w @ x), float(w @ y)
@@ -126,9 +130,10 @@ def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) 
     _, vecs = np.linalg.eigh(cov)
     along = vecs[:, 1]  # the major axis: along the path
     s = (x - mx) * along[0] + (y - my) * along[1]
-    lo, hi = s[weight > 0].min(), s[weight > 0].max()
-    piece = np.floor((s - lo) / (hi - lo) * nparts) if hi > lo else np.zeros_like(s)
-    return np.clip(piece, 0, nparts - 1).astype(np.int32)
+    order = np.argsort(s, kind="stable")
+    below = np.cumsum(weight[order])
+    cuts = s[order][np.searchsorted(below, below[-1] * np.arange(1, nparts) / nparts)]
+    return np.searchsorted(cuts, s, side="right").astype(np.int32)
 
 
 def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
@@ -136,8 +141,8 @@ def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
                 nparts: int) -> np.ndarray | None:
     """Owner of every structured cell (index ``j nx + i``), or None (nothing released).
 
-    The path is cut into ``PIECES_PER_RANK * nparts`` pieces of equal length along it, dealt
-    to the ranks in turn.
+    The path is cut into ``PIECES_PER_RANK * nparts`` pieces with equal shares of its cells,
+    dealt to the ranks in turn.
 
     Args:
         centres: (nx ny, 2) cell centres, row-major.
