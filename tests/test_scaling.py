@@ -38,6 +38,22 @@ def test_the_table_says_how_the_runs_ended():
     assert "| 600.0 (end or max) |" in scaling.format_table({"tg2": s}, 2)
 
 
+def test_side_by_side_copies_give_the_machines_ceiling():
+    walls = [(14.0, 9.0), (15.0, 9.5), (13.0, 10.0)]
+    side = [(16.0, 17.0), (16.5, 16.5), (20.0, 18.0)]  # two 1-rank copies run at once
+    runs = [{1: _summary(a), 2: _summary(b), "side": [_summary(c), _summary(d)]}
+            for (a, b), (c, d) in zip(walls, side, strict=True)]
+    s = scaling.summarize(runs)
+    assert s["side"] == pytest.approx([16.5, 16.5, 19.0], rel=1e-15)
+    assert s["ceiling"] == pytest.approx(2 * 14.0 / 16.5, rel=1e-15)
+    assert s["ratio"] == pytest.approx(14.0 / 9.5, rel=1e-15) and s["same"]
+    table = scaling.format_table({"tg2": s}, 2)
+    assert "| 2 × 1 rank at once [s], per round | ceiling |" in table
+    assert "| 16.50, 16.50, 19.00 | 1.70× |" in table
+    runs[1]["side"][0] = _summary(16.0, steps=901)  # a copy with another result is flagged
+    assert not scaling.summarize(runs)["same"]
+
+
 @pytest.mark.parametrize("key, value", [("steps", 901), ("runout_length", 1500.5),
                                         ("affected_area", 2e5 + 1.0)])
 def test_a_result_that_depends_on_the_rank_count_is_flagged(key, value):
@@ -54,10 +70,11 @@ def test_a_small_case_at_1_and_2_ranks_gives_the_same_result(tmp_path):
     args = argparse.Namespace(
         case=scaling.ROOT / "cases" / "hemisphere.yaml", methods=["tg2"], ranks=2, rounds=1,
         set=["domain.cells=[24,24]", "time.end=0.05", "output.pictures=false"],
-        work=tmp_path / "runs", out=doc)
+        work=tmp_path / "runs", out=doc, side_by_side=True)
     assert scaling.main(args) == 0
     text = doc.read_text()
     assert text.startswith("before\n") and text.endswith("after\n") and "old" not in text
     row = next(line for line in text.splitlines() if line.startswith("| tg2 |"))
     assert row.endswith("| yes |")
-    assert "--set time.end=0.05" in text
+    assert "--set time.end=0.05" in text and "--side-by-side" in text
+    assert row.count("|") == 14  # the two side-by-side columns

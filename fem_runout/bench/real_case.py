@@ -78,14 +78,32 @@ def _out_dir(name: str, method: str, ranks: int) -> Path:
     return ROOT / "results" / f"{name}_{method}_np{ranks}"
 
 
-def run_case(case: Path, method: str, ranks: int, out: Path, extra: Sequence[str] = ()) -> None:
-    """Run the case with the command line (one thread per rank; ``extra`` arguments)."""
+def _command(case: Path, method: str, ranks: int, out: Path, extra: Sequence[str]) -> list[str]:
+    """Return the command line of a run (``mpiexec`` for more than one rank)."""
     cmd = [sys.executable, "-m", "fem_runout", str(case), "--method", method, "--out",
            str(out), "--overwrite", "--quiet", *extra]
     if ranks > 1:
         cmd = [str(Path(sys.executable).parent / "mpiexec"), "-n", str(ranks), *cmd]
-    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    subprocess.run(cmd, check=True, cwd=ROOT, env=env)
+    return cmd
+
+
+def _env() -> dict[str, str]:
+    return dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+
+
+def run_case(case: Path, method: str, ranks: int, out: Path, extra: Sequence[str] = ()) -> None:
+    """Run the case with the command line (one thread per rank; ``extra`` arguments)."""
+    subprocess.run(_command(case, method, ranks, out, extra), check=True, cwd=ROOT, env=_env())
+
+
+def run_cases_together(case: Path, method: str, outs: Sequence[Path],
+                       extra: Sequence[str] = ()) -> None:
+    """Start one 1-rank run per folder of ``outs`` at once and wait for all of them."""
+    procs = [subprocess.Popen(_command(case, method, 1, out, extra), cwd=ROOT, env=_env())
+             for out in outs]
+    failed = [p.args for p in procs if p.wait() != 0]
+    if failed:
+        raise subprocess.CalledProcessError(1, failed[0])
 
 
 def format_table(rows: list[dict[str, Any]]) -> str:

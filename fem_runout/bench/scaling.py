@@ -15,6 +15,13 @@ ratio, and the medians with their ratio. The run-out, the affected area and the 
 be the same in every run of a method (the results do not depend on the rank count); the command
 fails otherwise. The table goes between the ``<!-- scaling -->`` markers of the doc, with the
 machine, the date and the command.
+
+With ``--side-by-side`` every round also starts R copies of the 1-rank run at once, one per
+core. How much slower each copy is than the run alone measures what the cores take from each
+other (shared caches, memory bandwidth, a virtual machine's host): R runs of the same work at
+once finish R ``t_1 / t_side`` times faster than R runs one after the other, the ceiling of
+the speed-up on R ranks before any message or imbalance (session 37: 13–22 % slower per copy
+on a 2-vCPU Intel instance, a ceiling near 1.7×).
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from fem_runout.bench.markers import splice
-from fem_runout.bench.real_case import ROOT, run_case
+from fem_runout.bench.real_case import ROOT, run_case, run_cases_together
 from fem_runout.methods import method_names
 
 __all__ = ["HELP", "SAME", "abba_order", "add_arguments", "format_table", "main", "summarize"]
@@ -54,6 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folders of the runs")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "performance.md",
                         help="doc with the <!-- scaling --> markers (left alone without them)")
+    parser.add_argument("--side-by-side", action="store_true",
+                        help="also run R copies of the 1-rank run at once in every round: the "
+                             "speed-up's ceiling on this machine")
 
 
 def abba_order(rounds: int, ranks: int) -> list[tuple[int, int]]:
@@ -70,17 +80,28 @@ def summarize(runs: list[dict[int, dict[str, Any]]]) -> dict[str, Any]:
     Returns:
         ``walls`` (rank count -> the rounds' wall times), ``medians`` (rank count -> median),
         ``ratio`` (1-rank median over the other's), ``round_ratios``, ``same`` (whether every
-        run has the same :data:`SAME` values) and ``result`` (the first run's values).
+        run has the same :data:`SAME` values) and ``result`` (the first run's values). With
+        side-by-side runs (key ``"side"``: the summaries of the copies run at once) also
+        ``side`` (the rounds' mean wall time of a copy), its median ``side_median`` and
+        ``ceiling``, ``R`` times the 1-rank median over it.
     """
+    side = [r.get("side") for r in runs]
+    runs = [{n: s for n, s in r.items() if n != "side"} for r in runs]
     counts = sorted(runs[0])
     walls = {n: [float(r[n]["wall_time"]) for r in runs] for n in counts}
     medians = {n: statistics.median(w) for n, w in walls.items()}
     many = counts[-1]
     first = {k: runs[0][counts[0]][k] for k in SAME + ENDING if k in runs[0][counts[0]]}
-    same = all(s[k] == first[k] for r in runs for s in r.values() for k in SAME)
-    return {"walls": walls, "medians": medians, "ratio": medians[1] / medians[many],
-            "round_ratios": [w1 / wr for w1, wr in zip(walls[1], walls[many], strict=True)],
-            "same": same, "result": first}
+    copies = [c for r in side if r for c in r]
+    same = all(s[k] == first[k] for r in runs for s in [*r.values(), *copies] for k in SAME)
+    out = {"walls": walls, "medians": medians, "ratio": medians[1] / medians[many],
+           "round_ratios": [w1 / wr for w1, wr in zip(walls[1], walls[many], strict=True)],
+           "same": same, "result": first}
+    if all(side):
+        out["side"] = [statistics.fmean(float(c["wall_time"]) for c in r) for r in side]
+        out["side_median"] = statistics.median(out["side"])
+        out["ceiling"] = many * medians[1] / out["side_median"]
+    return out
 
 
 def _ending(result: dict[str, Any]) -> str:
@@ -92,18 +113,27 @@ def _ending(result: dict[str, Any]) -> str:
 
 
 def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
-    """Markdown table: one row per method (the :func:`summarize` of its rounds)."""
+    """Markdown table: one row per method (the :func:`summarize` of its rounds).
+
+    With side-by-side runs two more columns: a copy's wall time per round (the mean of the
+    ``R`` copies) and the ceiling ``R t_1 / t_side`` by medians.
+    """
+    side = all("side" in s for s in rows.values())
+    extra = (f" {ranks} × 1 rank at once [s], per round | ceiling |", "---|---:|") if side \
+        else ("", "")
     lines = [f"| method | 1 rank [s], per round | {ranks} ranks [s], per round | medians [s] | "
-             "speed-up by medians | per round | run-out [m] | area [m²] | steps | "
+             f"speed-up by medians | per round |{extra[0]} run-out [m] | area [m²] | steps | "
              "simulated [s] | same result |",
-             "|---|---|---|---|---:|---|---:|---:|---:|---|---|"]
+             f"|---|---|---|---|---:|---|{extra[1]}---:|---:|---:|---|---|"]
     for method, s in rows.items():
         w1, wr = (", ".join(f"{t:.2f}" for t in s["walls"][n]) for n in (1, ranks))
         rr = s["round_ratios"]
         res = s["result"]
+        more = (f" {', '.join(f'{t:.2f}' for t in s['side'])} | {s['ceiling']:.2f}× |"
+                if side else "")
         lines.append(
             f"| {method} | {w1} | {wr} | {s['medians'][1]:.2f} / {s['medians'][ranks]:.2f} | "
-            f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} | "
+            f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} |{more} "
             f"{res['runout_length']:.1f} | {res['affected_area']:.0f} | {res['steps']} | "
             f"{_ending(res)} | {'yes' if s['same'] else 'NO'} |")
     return "\n".join(lines)
@@ -131,6 +161,10 @@ def _measure(args: argparse.Namespace, method: str) -> list[dict[int, dict[str, 
             out = args.work / f"{method}_np{n}"
             run_case(args.case, method, n, out, extra)
             round_[n] = json.loads((out / "summary.json").read_text())
+        if args.side_by_side:
+            outs = [args.work / f"{method}_side{k}" for k in range(args.ranks)]
+            run_cases_together(args.case, method, outs, extra)
+            round_["side"] = [json.loads((o / "summary.json").read_text()) for o in outs]
         runs.append(round_)
     return runs
 
@@ -144,6 +178,7 @@ def main(args: argparse.Namespace) -> int:
     stamp = (f"{datetime.date.today()}, {_machine()}; `python -m fem_runout.bench scaling "
              f"--case {os.path.relpath(args.case, ROOT)} --methods {' '.join(args.methods)} "
              f"--ranks {args.ranks} --rounds {args.rounds}"
+             + (" --side-by-side" if args.side_by_side else "")
              + "".join(f" --set {item}" for item in args.set) + "`")
     print(f"{table}\n\n{stamp}")
     splice(args.out, BEGIN, END, f"{table}\n\n{stamp}")
