@@ -57,7 +57,7 @@ bench: setup
 		--out docs/step_cost_dampm.md
 	@if [ -f "$${FEM_RUNOUT_DATA:-../shared/data}/avaKot/avaKot.asc" ]; then \
 		$(PY) -m fem_runout.bench footprint --out docs/performance.md; \
-		$(PY) -m fem_runout.bench scaling --out docs/performance.md; \
+		$(PY) -m fem_runout.bench scaling --side-by-side --out docs/performance.md; \
 		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --out docs/meshes.md; \
 	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; \
 		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --only thacker hemisphere \

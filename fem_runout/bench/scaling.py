@@ -20,8 +20,9 @@ With ``--side-by-side`` every round also starts R copies of the 1-rank run at on
 core. How much slower each copy is than the run alone measures what the cores take from each
 other (shared caches, memory bandwidth, a virtual machine's host): R runs of the same work at
 once finish R ``t_1 / t_side`` times faster than R runs one after the other, the ceiling of
-the speed-up on R ranks before any message or imbalance (session 37: 13–22 % slower per copy
-on a 2-vCPU Intel instance, a ceiling near 1.7×).
+the speed-up on R ranks before any message or imbalance (session 37, a 2-vCPU Intel instance:
+1.99–2.14×, no measurable slow-down; single pairs timed by hand had suggested 13–22 %, the
+instance's drift).
 """
 
 from __future__ import annotations
