@@ -59,14 +59,37 @@ def gather_total(src, flat, out):
     """:func:`gather_on` then :func:`total_on` without the buffer (one rank).
 
     ``out[k]`` from the slots ``src[k]``: all nodes, or the rows of a subset
-    (:mod:`fem_runout.active`).
+    (:mod:`fem_runout.active`). A missing slot is skipped instead of adding 0.0: the same
+    bits, since the running sum starts at +0.0 and never becomes -0.0 (x + 0.0 = x for every
+    other x, NaN included).
     """
+    if src.shape[1] == 4:  # the structured mesh: four slots unrolled, 2-3 times faster
+        _gather_total4(src, flat, out)
+        return
     for i in range(src.shape[0]):
         for c in range(flat.shape[1]):
             acc = 0.0
             for s in range(src.shape[1]):
                 j = src[i, s]
                 acc = acc + (flat[j, c] if j >= 0 else 0.0)
+            out[i, c] = acc
+
+
+@numba.njit(cache=True)
+def _gather_total4(src, flat, out):
+    """:func:`gather_total` with four slots, the slot indices read once per node."""
+    for i in range(src.shape[0]):
+        j0, j1, j2, j3 = src[i, 0], src[i, 1], src[i, 2], src[i, 3]
+        for c in range(flat.shape[1]):
+            acc = 0.0
+            if j0 >= 0:
+                acc = acc + flat[j0, c]
+            if j1 >= 0:
+                acc = acc + flat[j1, c]
+            if j2 >= 0:
+                acc = acc + flat[j2, c]
+            if j3 >= 0:
+                acc = acc + flat[j3, c]
             out[i, c] = acc
 
 

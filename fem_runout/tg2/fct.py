@@ -358,29 +358,37 @@ def limit_pairs_sync(cells, flux, source, rplus, rminus, speed, cap, out):
         out: (n, 4, 3) output.
     """
     for k in range(cells.shape[0]):
-        for c in range(3):
-            mu = source[c, k]
-            for a in range(4):
-                i = cells[k, a]
-                r = rplus[c, i] if mu > 0.0 else rminus[c, i]
-                out[k, a, c] = mu * (r if c == 0 else min(r, cap[i]))
+        # the cell's node values, read once (the stores to out could alias them for the
+        # compiler): the same operations, the same bits
+        n0, n1, n2, n3 = cells[k, 0], cells[k, 1], cells[k, 2], cells[k, 3]
+        P0 = (rplus[0, n0], rplus[0, n1], rplus[0, n2], rplus[0, n3])
+        P1 = (rplus[1, n0], rplus[1, n1], rplus[1, n2], rplus[1, n3])
+        P2 = (rplus[2, n0], rplus[2, n1], rplus[2, n2], rplus[2, n3])
+        M0 = (rminus[0, n0], rminus[0, n1], rminus[0, n2], rminus[0, n3])
+        M1 = (rminus[1, n0], rminus[1, n1], rminus[1, n2], rminus[1, n3])
+        M2 = (rminus[2, n0], rminus[2, n1], rminus[2, n2], rminus[2, n3])
+        S = (speed[n0], speed[n1], speed[n2], speed[n3])
+        CP = (cap[n0], cap[n1], cap[n2], cap[n3])
+        s0, s1, s2 = source[0, k], source[1, k], source[2, k]
+        for a in range(4):
+            out[k, a, 0] = s0 * (P0[a] if s0 > 0.0 else M0[a])
+            out[k, a, 1] = s1 * min(P1[a] if s1 > 0.0 else M1[a], CP[a])
+            out[k, a, 2] = s2 * min(P2[a] if s2 > 0.0 else M2[a], CP[a])
         for p in range(6):
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
-            i = cells[k, a]
-            j = cells[k, b]
             f0, f1, f2 = flux[0, k, p], flux[1, k, p], flux[2, k, p]
-            a0 = _own_factor(f0, rplus[0, i], rminus[0, i], rplus[0, j], rminus[0, j])
-            a1 = _own_factor(f1, rplus[1, i], rminus[1, i], rplus[1, j], rminus[1, j])
-            a2 = _own_factor(f2, rplus[2, i], rminus[2, i], rplus[2, j], rminus[2, j])
-            s0, s1, s2 = abs(f0) * max(speed[i], speed[j]), abs(f1), abs(f2)
-            top = max(max(max(0.0, s0), s1), s2)
+            a0 = _own_factor(f0, P0[a], M0[a], P0[b], M0[b])
+            a1 = _own_factor(f1, P1[a], M1[a], P1[b], M1[b])
+            a2 = _own_factor(f2, P2[a], M2[a], P2[b], M2[b])
+            w0, w1, w2 = abs(f0) * max(S[a], S[b]), abs(f1), abs(f2)
+            top = max(max(max(0.0, w0), w1), w2)
             common = 1.0
             if top > 0.0:
-                common = min(common, 1.0 - (1.0 - a0) * (s0 / top))
-                common = min(common, 1.0 - (1.0 - a1) * (s1 / top))
-                common = min(common, 1.0 - (1.0 - a2) * (s2 / top))
-            c_ij = min(cap[i], cap[j])
+                common = min(common, 1.0 - (1.0 - a0) * (w0 / top))
+                common = min(common, 1.0 - (1.0 - a1) * (w1 / top))
+                common = min(common, 1.0 - (1.0 - a2) * (w2 / top))
+            c_ij = min(CP[a], CP[b])
             g0 = f0 * min(common, a0)
             g1 = f1 * min(min(common, a1), c_ij)
             g2 = f2 * min(min(common, a2), c_ij)
