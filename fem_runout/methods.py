@@ -38,6 +38,8 @@ class Method:
         rheology: The method supports an internal rheology (``material.rheology``).
         unstructured: The method runs on gmsh meshes (``domain.outline``, ``domain.mesh``),
             not only on the rectangle's grid.
+        step_bounds: The method reads ``numerics.step_bound`` (its time step's bound can be
+            the depth's own, ``positivity``; the peers' bench adds such a row).
         description: One line for ``--help`` and docs.
         paper: The seed paper's reported values for this method (e.g. ``front`` on the
             inclined dam break: time [s] -> front [m]; ``lake``: variable -> (L1, L∞) of
@@ -51,6 +53,7 @@ class Method:
     particles: bool = False
     rheology: bool = True
     unstructured: bool = True
+    step_bounds: bool = False
     description: str = ""
     paper: Mapping[str, Any] = field(default_factory=dict)
     marker: tuple[str, str] = ("tab:gray", "x")
@@ -96,6 +99,7 @@ register(Method(
     name="tg2",
     display="TG2-PC",
     builder="fem_runout.tg2.solver:build_tg2",
+    step_bounds=True,
     description="two-step Taylor-Galerkin with path-conservative edge terms and FCT (seed §3.1)",
     paper={"front": {5.5: 97.3, 11.0: 240.6},
            "lake": {"h": ("2.68e-13", "8.92e-15"), "hu": ("2.38e-13", "1.41e-14"),

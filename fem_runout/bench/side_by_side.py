@@ -6,8 +6,10 @@ their own virtualenvs outside the project) and then runs::
     python -m fem_runout.bench side-by-side --rounds 3 --out docs/peers.md
 
 Two scenes, one core each, every code run once per round in a fixed order (GeoClaw, TG2-PC,
-DAMPM; com1DFA, TG2-PC, DAMPM), so a slow spell of the machine hits every code alike; the
-tables give the median and the range over the rounds:
+DAMPM, TG2-PC with the positivity step bound; com1DFA, the same), so a slow spell of the
+machine hits every code alike; the tables give the median and the range over the rounds. The
+positivity rows are TG2-PC with ``numerics.step_bound: positivity`` (the depth's own step
+bound, about half the steps of a fast flow; docs/method.md):
 
 - the inclined dam break on [0, 450] × [0, 20] m (``cases/inclined_dam_break_450.yaml``) on
   the same grid for all (GeoClaw: cells, one level, no AMR; ours: Q1 nodes on the same
@@ -38,7 +40,7 @@ import numpy as np
 from fem_runout.bench.peers import depth_maps_figure, our_metrics, peer_metrics
 from fem_runout.bench.peers_doc import write_doc
 from fem_runout.bench.peers_ladder import ladder_figure, ladder_grids
-from fem_runout.methods import default_method, method_names
+from fem_runout.methods import default_method, get, method_names
 
 __all__ = ["HELP", "Job", "add_arguments", "main", "peer_pythons"]
 
@@ -47,6 +49,9 @@ ROOT = Path(__file__).resolve().parents[2]
 CASES = ROOT / "cases"
 PEERS_HOME = Path.home() / ".cache" / "fem_runout" / "peers"
 METHODS = tuple(method_names())
+#: Methods with a choice of time-step bound: each gets a second row with the depth's own bound.
+_STEP_BOUNDS = tuple(m for m in METHODS if get(m).step_bounds)
+POSITIVITY = ("numerics.step_bound=positivity",)
 
 
 @dataclass(frozen=True)
@@ -142,19 +147,20 @@ def _geoclaw(args: argparse.Namespace, python: Path, grid: tuple[int, int] | Non
     return Job(scene, "GeoClaw" if scene == "dam" else f"GeoClaw {nx}x{ny}", run)
 
 
-def _our_dam(method: str, grid: tuple[int, int], scene: str = "dam") -> Job:
+def _our_dam(method: str, grid: tuple[int, int], scene: str = "dam",
+             extra: tuple[str, ...] = ()) -> Job:
     from fem_runout.references.inclined_dam_break import exact_front
 
     def run(folder: Path) -> tuple[dict[str, Any], None]:
         r = _run_case("inclined_dam_break_450", method, f"domain.cells=[{grid[0]},{grid[1]}]",
-                      "output.every=5.5")
+                      "output.every=5.5", *extra)
         front = float(r.series["front_x"][int(np.argmin(np.abs(r.series["t"] - 11.0)))])
         work = (r.particles if r.particles else grid[0] * grid[1]) * r.steps
         return {"wall": r.wall_time, "steps": r.steps, "work": work, "front": front,
                 "error": abs(front / exact_front(11.0) - 1.0), "particles": r.particles,
                 "nx": grid[0], "ny": grid[1]}, None
 
-    label = _label(method)
+    label = _label(method, extra)
     return Job(scene, label if scene == "dam" else f"{label} {grid[0]}x{grid[1]}", run)
 
 
@@ -175,17 +181,17 @@ def _com1dfa(args: argparse.Namespace, python: Path, cell: float) -> Job:
     return Job("avakot", f"com1DFA {cell:g} m", run)
 
 
-def _our_avakot(method: str) -> Job:
+def _our_avakot(method: str, extra: tuple[str, ...] = ()) -> Job:
     def run(folder: Path) -> tuple[dict[str, Any], Any]:
         r = _run_case("avakot", method, f"output.dir={folder}", "output.pictures=false",
-                      write=True)
+                      *extra, write=True)
         metrics, depth, transform = our_metrics(folder)
         work = (r.particles if r.particles else _mesh_cells(r)) * r.steps
         metrics.update(wall=r.wall_time, steps=r.steps, cell=10.0, particles=r.particles,
                        work=work)
         return metrics, (depth, transform)
 
-    return Job("avakot", _label(method), run)
+    return Job("avakot", _label(method, extra), run)
 
 
 def _mesh_cells(result: Any) -> int:
@@ -194,10 +200,10 @@ def _mesh_cells(result: Any) -> int:
     return nx * (len(result.x) // (nx + 1) - 1)
 
 
-def _label(method: str) -> str:
+def _label(method: str, extra: tuple[str, ...] = ()) -> str:
     from fem_runout import methods
 
-    return methods.get(method).display
+    return methods.get(method).display + (" (positivity step)" if POSITIVITY == extra else "")
 
 
 def _run_case(name: str, method: str, *overrides: str, write: bool = False) -> Any:
@@ -216,9 +222,11 @@ def build_jobs(args: argparse.Namespace, pythons: dict[str, Path]) -> list[Job]:
     if "dam" not in args.skip:
         jobs += [_geoclaw(args, pythons["geoclaw"])]
         jobs += [_our_dam(m, tuple(args.grid)) for m in METHODS]
+        jobs += [_our_dam(m, tuple(args.grid), extra=POSITIVITY) for m in _STEP_BOUNDS]
     if "avakot" not in args.skip:
         jobs += [_com1dfa(args, pythons["avaframe"], c) for c in args.com1dfa_cells]
         jobs += [_our_avakot(m) for m in METHODS]
+        jobs += [_our_avakot(m, POSITIVITY) for m in _STEP_BOUNDS]
     return jobs
 
 

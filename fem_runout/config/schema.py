@@ -155,6 +155,11 @@ class NumericsSpec(StrictSpec):
     # (fem_runout/tg2/mass_correction.py); false: the seed's lumped corrector
     mass_correction: Bool = True
     active_set: Bool = True  # TG2: work on the cells near the flow only (same bits)
+    # TG2: the time step's bound (fem_runout/tg2/transport.py, stable_dt): "conservative" counts
+    # the advective part |β·u| of every pair; "positivity" is the depth's own bound, where those
+    # parts cancel: about half the steps of a fast flow, dry fronts sharper on fine grids and
+    # behind on coarse ones (docs/method.md, "The time step's bound")
+    step_bound: Literal["conservative", "positivity"] = "conservative"
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
     # DAMPM: grid-to-particle velocity transfer, FLIP/PIC blend (``flip``) or affine (APIC)

@@ -16,8 +16,11 @@ pushes nothing — and continuous in between (no mask that switches on round-off
 cell's mass contributions sum to zero (conservation), vanish for
 a lake at rest (also with emerged dry ground), and the update is positive for
 ``dt <= m_i / Σ_j (d_ij + |β_ij·u_i|)`` (this bound, with the eigenvalues ``|u·n| ± sqrt(g h)`` of
-the full system, sets the time step). This is the low-order scheme of seed eq. 15 that the FCT
-limiter blends with TG2-PC.
+the full system, sets the time step by default). The depth alone stays non-negative up to
+``dt <= m_i / Σ_j (d_ij + β_ij·u_i)``: node i loses ``h*_ij (d_ij + β_ij·u_i) >= 0`` to each pair
+and ``h*_ij <= h_i``, and at an interior node ``Σ_j β_ij = 0``, so the advective part drops out
+(up to twice the step in a fast flow; ``numerics.step_bound: positivity``). This is the
+low-order scheme of seed eq. 15 that the FCT limiter blends with TG2-PC.
 """
 
 from __future__ import annotations
@@ -115,8 +118,30 @@ def pair_coefficients(C: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(0.5 * (C[:, a, b, :] - C[:, b, a, :]))
 
 
+@numba.njit(cache=True, inline="always")
+def _pressure(C, k, H, Z, G, E, tol, out):
+    """Cell k's pressure rates ``-g h_i Σ_j (η̂_ij - η_i) ∫_K φ_i ∇φ_j`` into ``out[k]`` (mass 0).
+
+    ``H, Z, G, E``: the cell's nodal depth, bed, gravity and surface ``h + Z`` (tuples).
+    """
+    for a in range(4):
+        eta_i = E[a]
+        p1 = 0.0
+        p2 = 0.0
+        for b in range(4):
+            if b == a:
+                continue
+            eta_hat = E[b] - bank_drop(H[b], max(Z[b] - eta_i, 0.0), tol)
+            p1 += (eta_hat - eta_i) * C[k, a, b, 0]
+            p2 += (eta_hat - eta_i) * C[k, a, b, 1]
+        out[k, a, 0] = 0.0
+        out[k, a, 1] = -G[a] * H[a] * p1
+        out[k, a, 2] = -G[a] * H[a] * p2
+
+
 @numba.njit(cache=True)
-def low_order_pass(cells, beta, beta_norm, C, h, qx, qy, z, ux, uy, g, tol, out, cap):
+def low_order_pass(cells, beta, beta_norm, C, h, qx, qy, z, ux, uy, g, tol, out, cap,
+                   signed=False):
     """Low-order rates per cell and node, and the time-step capacity per node, in one pass.
 
     Every unordered pair is visited once: its mass and momentum fluxes are antisymmetric
@@ -137,58 +162,51 @@ def low_order_pass(cells, beta, beta_norm, C, h, qx, qy, z, ux, uy, g, tol, out,
         tol: Depth δ of the wet weight (:func:`bank_drop`).
         out: (n, 4, 3) low-order rates (overwritten; not multiplied by dt).
         cap: (n, 4) ``Σ_j (d_ij + |β_ij·u_i|)`` per cell and node (overwritten).
+        signed: Capacities ``Σ_j (d_ij + β_ij·u_i)`` instead, the depth's own bound
+            (``numerics.step_bound: positivity``, :meth:`Transport.stable_dt
+            <fem_runout.tg2.transport.Transport.stable_dt>`).
     """
     for k in range(cells.shape[0]):
-        nodes = cells[k]
+        # the cell's node values, read once (the stores to out and cap below could alias
+        # them for the compiler): the same operations, the same bits
+        n0, n1, n2, n3 = cells[k, 0], cells[k, 1], cells[k, 2], cells[k, 3]
+        H = (h[n0], h[n1], h[n2], h[n3])
+        Z = (z[n0], z[n1], z[n2], z[n3])
+        G = (g[n0], g[n1], g[n2], g[n3])
+        UX = (ux[n0], ux[n1], ux[n2], ux[n3])
+        UY = (uy[n0], uy[n1], uy[n2], uy[n3])
+        E = (H[0] + Z[0], H[1] + Z[1], H[2] + Z[2], H[3] + Z[3])
+        _pressure(C, k, H, Z, G, E, tol, out)
         for a in range(4):
             cap[k, a] = 0.0
-        for a in range(4):
-            i = nodes[a]
-            eta_i = h[i] + z[i]
-            p1 = 0.0
-            p2 = 0.0
-            for b in range(4):
-                if b == a:
-                    continue
-                j = nodes[b]
-                eta_hat = h[j] + z[j] - bank_drop(h[j], max(z[j] - eta_i, 0.0), tol)
-                p1 += (eta_hat - eta_i) * C[k, a, b, 0]
-                p2 += (eta_hat - eta_i) * C[k, a, b, 1]
-            out[k, a, 0] = 0.0
-            out[k, a, 1] = -g[i] * h[i] * p1
-            out[k, a, 2] = -g[i] * h[i] * p2
         # the nodes' wave speeds, once per cell (the pairs below take them: the same bits)
-        c0 = np.sqrt(g[nodes[0]] * max(h[nodes[0]], 0.0))
-        c1 = np.sqrt(g[nodes[1]] * max(h[nodes[1]], 0.0))
-        c2 = np.sqrt(g[nodes[2]] * max(h[nodes[2]], 0.0))
-        c3 = np.sqrt(g[nodes[3]] * max(h[nodes[3]], 0.0))
+        c = (np.sqrt(G[0] * max(H[0], 0.0)), np.sqrt(G[1] * max(H[1], 0.0)),
+             np.sqrt(G[2] * max(H[2], 0.0)), np.sqrt(G[3] * max(H[3], 0.0)))
         for p in range(6):
             a = PAIRS[p, 0]
             b = PAIRS[p, 1]
-            i = nodes[a]
-            j = nodes[b]
             bx = beta[k, p, 0]
             by = beta[k, p, 1]
-            zm = max(z[i], z[j])
-            hs_ij = max(0.0, h[i] + z[i] - zm)
-            hs_ji = max(0.0, h[j] + z[j] - zm)
+            zm = max(Z[a], Z[b])
+            hs_ij = max(0.0, E[a] - zm)
+            hs_ji = max(0.0, E[b] - zm)
             nb = beta_norm[k, p]
-            bu_i = bx * ux[i] + by * uy[i]
-            bu_j = bx * ux[j] + by * uy[j]
-            c_i = c0 if a == 0 else (c1 if a == 1 else c2)  # a < b in PAIRS
-            c_j = c1 if b == 1 else (c2 if b == 2 else c3)
-            d = max(abs(bu_i) + c_i * nb, abs(bu_j) + c_j * nb)
+            uxi, uyi, uxj, uyj = UX[a], UY[a], UX[b], UY[b]
+            bu_i = bx * uxi + by * uyi
+            bu_j = bx * uxj + by * uyj
+            d = max(abs(bu_i) + c[a] * nb, abs(bu_j) + c[b] * nb)
             fm = -(hs_ij * bu_i + hs_ji * bu_j) + d * (hs_ji - hs_ij)
-            fx = -bu_i * hs_ij * ux[i] - bu_j * hs_ji * ux[j] + d * (hs_ji * ux[j] - hs_ij * ux[i])
-            fy = -bu_i * hs_ij * uy[i] - bu_j * hs_ji * uy[j] + d * (hs_ji * uy[j] - hs_ij * uy[i])
+            fx = -bu_i * hs_ij * uxi - bu_j * hs_ji * uxj + d * (hs_ji * uxj - hs_ij * uxi)
+            fy = -bu_i * hs_ij * uyi - bu_j * hs_ji * uyj + d * (hs_ji * uyj - hs_ij * uyi)
             out[k, a, 0] += fm
             out[k, a, 1] += fx
             out[k, a, 2] += fy
             out[k, b, 0] -= fm
             out[k, b, 1] -= fx
             out[k, b, 2] -= fy
-            cap[k, a] += d + abs(bu_i)
-            cap[k, b] += d + abs(bu_j)
+            # node b's coefficient of the pair is β_ba = -β_ab: it loses h*_ji (d - β_ab·u_j)
+            cap[k, a] += d + (bu_i if signed else abs(bu_i))
+            cap[k, b] += d + (-bu_j if signed else abs(bu_j))
 
 
 @numba.njit(cache=True)

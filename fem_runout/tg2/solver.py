@@ -229,7 +229,7 @@ def build_tg2(case: Case, comm: MPI.Comm) -> TG2Solver:
     pb = build_problem(case, comm)
     num = case.numerics
     transport = Transport(pb.disc, pb.gravity, num.dry_tolerance, pb.thin_depth, num.fct,
-                          pb.slope, num.active_set, num.mass_correction)
+                          pb.slope, num.active_set, num.mass_correction, num.step_bound)
     for name in ("z", "h", "hu", "hv"):
         getattr(transport, name).x.array[:] = pb.init[name]
     reaction = None

@@ -59,3 +59,10 @@ def test_slope_form_with_curvature_same_on_one_and_two_ranks():
                   "output.every=1.0", "model.form=slope", "model.curvature=true",
                   "terrain.elevation=100 - x/3 + 0.002*(x - 60)**2 + 0.5*sin(y/4)",
                   "material.friction={law: voellmy, mu: 0.2, xi: 500}"))
+
+
+def test_positivity_step_bound_same_on_one_and_two_ranks():
+    """``numerics.step_bound: positivity`` (the longer steps) keeps the rank-independent bits."""
+    _compare(case("inclined_dam_break", "domain.cells=[120,8]", "time.end=3.0",
+                  "output.every=1.0", "numerics.step_bound=positivity",
+                  "material.friction={law: voellmy, phi_deg: 26, xi: 500}"))
