@@ -116,6 +116,9 @@ def _ending(result: dict[str, Any]) -> str:
 def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
     """Markdown table: one row per method (the :func:`summarize` of its rounds).
 
+    The per-round speed-ups (``t_1 / t_R`` of each ABBA round, whose two runs are minutes
+    apart) are given as their range and median: on a machine whose speed drifts, the median of
+    these paired ratios is less exposed to the drift than the ratio of the two medians.
     With side-by-side runs two more columns: a copy's wall time per round (the mean of the
     ``R`` copies) and the ceiling ``R t_1 / t_side`` by medians.
     """
@@ -123,7 +126,8 @@ def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
     extra = (f" {ranks} × 1 rank at once [s], per round | ceiling |", "---|---:|") if side \
         else ("", "")
     lines = [f"| method | 1 rank [s], per round | {ranks} ranks [s], per round | medians [s] | "
-             f"speed-up by medians | per round |{extra[0]} run-out [m] | area [m²] | steps | "
+             f"speed-up by medians | per round (their median) |{extra[0]} run-out [m] | "
+             "area [m²] | steps | "
              "simulated [s] | same result |",
              f"|---|---|---|---|---:|---|{extra[1]}---:|---:|---:|---|---|"]
     for method, s in rows.items():
@@ -134,7 +138,8 @@ def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
                 if side else "")
         lines.append(
             f"| {method} | {w1} | {wr} | {s['medians'][1]:.2f} / {s['medians'][ranks]:.2f} | "
-            f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} |{more} "
+            f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} "
+            f"({statistics.median(rr):.2f}) |{more} "
             f"{res['runout_length']:.1f} | {res['affected_area']:.0f} | {res['steps']} | "
             f"{_ending(res)} | {'yes' if s['same'] else 'NO'} |")
     return "\n".join(lines)
