@@ -101,9 +101,10 @@ def run_cases_together(case: Path, method: str, outs: Sequence[Path],
     """Start one 1-rank run per folder of ``outs`` at once and wait for all of them."""
     procs = [subprocess.Popen(_command(case, method, 1, out, extra), cwd=ROOT, env=_env())
              for out in outs]
-    failed = [p.args for p in procs if p.wait() != 0]
+    codes = [p.wait() for p in procs]  # wait for every copy before reporting one
+    failed = [(code, p.args) for code, p in zip(codes, procs, strict=True) if code != 0]
     if failed:
-        raise subprocess.CalledProcessError(1, failed[0])
+        raise subprocess.CalledProcessError(*failed[0])
 
 
 def format_table(rows: list[dict[str, Any]]) -> str:

@@ -141,6 +141,11 @@ class OutputSpec(StrictSpec):
     checkpoint: CheckpointSpec = CheckpointSpec()
 
 
+#: TG2-PC's time-step bounds (``numerics.step_bound``, :meth:`fem_runout.tg2.transport.
+#: Transport.stable_dt`).
+STEP_BOUNDS = ("conservative", "positivity")
+
+
 class NumericsSpec(StrictSpec):
     """Wet/dry threshold [m], thin-layer depth [m], FCT switch (TG2) and particles (DAMPM).
 
@@ -159,7 +164,7 @@ class NumericsSpec(StrictSpec):
     # the advective part |β·u| of every pair; "positivity" is the depth's own bound, where those
     # parts cancel: about half the steps of a fast flow, dry fronts sharper on fine grids and
     # behind on coarse ones (docs/method.md, "The time step's bound")
-    step_bound: Literal["conservative", "positivity"] = "conservative"
+    step_bound: Literal[STEP_BOUNDS] = "conservative"
     particles_per_direction: Int = Field(2, ge=1, le=8)  # DAMPM: particles per cell and axis
     flip: Real = Field(0.9, ge=0, le=1)  # DAMPM: FLIP fraction of G2P (0 = PIC, seed eq. 38)
     # DAMPM: grid-to-particle velocity transfer, FLIP/PIC blend (``flip``) or affine (APIC)

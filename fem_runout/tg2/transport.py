@@ -21,6 +21,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from fem_runout.active import ActiveSet
+from fem_runout.config.schema import STEP_BOUNDS
 from fem_runout.mesh import Discretization, GhostReducer, zero_wall_normal
 from fem_runout.physics.slope import SlopeGeometry
 from fem_runout.stepping import acceleration_limit
@@ -42,8 +43,6 @@ from fem_runout.tg2.mass_correction import MassCorrection
 
 #: Width, in units of κ, of the wet weight that scales the slope of the time-step limit.
 WET_DEPTH = 1e3
-#: The time-step bounds of :meth:`Transport.stable_dt` (``numerics.step_bound``).
-STEP_BOUNDS = ("conservative", "positivity")
 
 
 class Transport:
