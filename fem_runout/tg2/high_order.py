@@ -131,11 +131,17 @@ class HighOrder:
         self.eta_t, self.Qk = fem.Function(Sd), fem.Function(W0)
         self.uk, self.etak = fem.Function(U0), fem.Function(S0)
         self.gk = fem.Function(S0)  # per-cell G of the slope form (mean of the nodes')
+        # views of the functions' arrays, taken once (each ``x.array`` builds a new view)
+        self._a = {name: f.x.array for name, f in (
+            ("h", self.h), ("hu", self.hu), ("hv", self.hv), ("z", z), ("ux", velocity[0]),
+            ("uy", velocity[1]), ("eta_t", self.eta_t), ("Qk", self.Qk), ("uk", self.uk),
+            ("etak", self.etak), ("gk", self.gk))}
         self.g_const = -1.0 if slope else float(gravity)
         #: the cell–edge data of the corrector (the rectangle's built here, a gmsh mesh's given)
         self.edges = disc.edges if disc.edges is not None else rectangle_edges(disc)
         self._dzdn: np.ndarray | None = None  # ∇Z·n at the edges, once Z is set
         self.b_pred = la.vector(W0.dofmap.index_map, 3)
+        self._b_pred = self.b_pred.array
         nc = disc.cell_nodes.shape[0]
         self._dofs = {
             "dof0": np.asarray(W0.dofmap.list[:nc, 0], dtype=np.int64),
@@ -156,22 +162,22 @@ class HighOrder:
             dt: Time step.
         """
         on = self._arrays(active)
-        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        a = self._a
+        h, hu, hv, z = a["h"], a["hu"], a["hv"], a["z"]
         cells = on["cells"]
         cell_eta = on["cell_eta"]
+        b_pred = self._b_pred
         reconstructed_surface(cells, h, z, self.kappa, cell_eta)
-        _put(self.eta_t.x.array, on["dofsd"], cell_eta)
+        _put(a["eta_t"], on["dofsd"], cell_eta)
         if gn is not None:
-            _put_cell_means(self.gk.x.array, on["dofs0"], gn, cells)
-        _zero_blocks(self.b_pred.array, on["dof0"], 3)
+            _put_cell_means(a["gk"], on["dofs0"], gn, cells)
+        _zero_blocks(b_pred, on["dof0"], 3)
         dofs, d = self._dofs, self.disc
-        predictor_cells(active.cells, d.cell_nodes, d.coords, h, hu, hv,
-                        self.velocity[0].x.array, self.velocity[1].x.array, self.eta_t.x.array,
-                        dofs["dofsd"], self.gk.x.array, dofs["dofs0"], self.g_const, dt,
-                        dofs["dof0"], self.b_pred.array)
-        _cell_states(cells, h, hu, hv, cell_eta, self.b_pred.array, on["dof0"], on["dofs0"],
-                     on["area"], on["weight"], self.kappa, self.Qk.x.array, self.uk.x.array,
-                     self.etak.x.array)
+        predictor_cells(active.cells, d.cell_nodes, d.coords, h, hu, hv, a["ux"], a["uy"],
+                        a["eta_t"], dofs["dofsd"], a["gk"], dofs["dofs0"], self.g_const, dt,
+                        dofs["dof0"], b_pred)
+        _cell_states(cells, h, hu, hv, cell_eta, b_pred, on["dof0"], on["dofs0"],
+                     on["area"], on["weight"], self.kappa, a["Qk"], a["uk"], a["etak"])
         return self._cell_by_cell(active, dt, on["out"])
 
     def _cell_by_cell(self, active: ActiveSet, dt: float, out: np.ndarray) -> np.ndarray:
@@ -179,8 +185,9 @@ class HighOrder:
         e, dofs, d = self.edges, self._dofs, self.disc
         if self._dzdn is None:
             self._dzdn = edge_dzdn(self.z.x.array, d.coords, d.cell_nodes, e.normal)
-        corrector_cells(active.owned, dofs["dof0"], dofs["dofs0"], self.Qk.x.array,
-                        self.uk.x.array, self.etak.x.array, self.gk.x.array, self.g_const,
+        a = self._a
+        corrector_cells(active.owned, dofs["dof0"], dofs["dofs0"], a["Qk"], a["uk"],
+                        a["etak"], a["gk"], self.g_const,
                         self.kappa, dt, e.neighbour, e.kind, e.normal, e.length, e.depth,
                         e.corner_edges, e.grad_centre, self._dzdn, out)
         return out

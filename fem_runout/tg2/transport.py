@@ -93,6 +93,9 @@ class Transport:
         V = disc.V
         self.h, self.hu, self.hv, self.z = (fem.Function(V, name=n) for n in ("h", "hu", "hv", "z"))
         self.ux, self.uy = fem.Function(V), fem.Function(V)
+        # views of the functions' arrays, taken once (each ``x.array`` builds a new view)
+        self._h, self._hu, self._hv, self._z, self._ux, self._uy = (
+            f.x.array for f in (self.h, self.hu, self.hv, self.z, self.ux, self.uy))
         self.high = HighOrder(disc, (self.h, self.hu, self.hv), (self.ux, self.uy), self.z,
                               self.g, self.kappa, slope is not None)
         self.reducer = GhostReducer(disc)
@@ -112,7 +115,7 @@ class Transport:
     # -- state -----------------------------------------------------------------------------
     def state(self, out: np.ndarray | None = None) -> np.ndarray:
         """(n_nodes_local, 3) copy of (h, hu, hv), into ``out`` if it has that shape."""
-        arrays = [self.h.x.array, self.hu.x.array, self.hv.x.array]
+        arrays = [self._h, self._hu, self._hv]
         if out is None or out.shape != (arrays[0].size, 3):
             out = np.empty((arrays[0].size, 3))
         return np.stack(arrays, axis=1, out=out)
@@ -127,18 +130,18 @@ class Transport:
 
     def state_on(self, nodes: np.ndarray) -> np.ndarray:
         """(len(nodes), 3) copy of (h, hu, hv) at the local nodes ``nodes``."""
-        return gather_state(self.h.x.array, self.hu.x.array, self.hv.x.array,
+        return gather_state(self._h, self._hu, self._hv,
                              np.asarray(nodes), np.empty((len(nodes), 3)))
 
     def set_state_on(self, nodes: np.ndarray, q: np.ndarray) -> None:
         """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values)."""
-        scatter_state(self.h.x.array, self.hu.x.array, self.hv.x.array, np.asarray(nodes),
+        scatter_state(self._h, self._hu, self._hv, np.asarray(nodes),
                        np.asarray(q, dtype=np.float64))
         self._fresh = False
 
     def set_state(self, q: np.ndarray) -> None:
         """Set (h, hu, hv) from a (n_nodes_local, 3) array (ghosts included)."""
-        self.h.x.array[:], self.hu.x.array[:], self.hv.x.array[:] = q[:, 0], q[:, 1], q[:, 2]
+        self._h[:], self._hu[:], self._hv[:] = q[:, 0], q[:, 1], q[:, 2]
         self._fresh = False
         self._anywhere = True
 
@@ -202,7 +205,7 @@ class Transport:
         if self._slope is None:
             self._slope = bounds.node_slopes(self.disc, self.z.x.array, self.reducer)
         # the continuous wet weight min(1, h/δ) of the owned nodes
-        return float(wet_weighted_max(self.h.x.array, self._slope, self.wet_depth,
+        return float(wet_weighted_max(self._h, self._slope, self.wet_depth,
                                       self.disc.n_owned_nodes))
 
     def _low_order_pass(self) -> None:
@@ -215,13 +218,13 @@ class Transport:
             self._anywhere = False
         on = self._arrays()
         nodes = on["nodes"]
-        h, hu, hv, z = self.h.x.array, self.hu.x.array, self.hv.x.array, self.z.x.array
+        h, hu, hv, z = self._h, self._hu, self._hv, self._z
         ux, uy = on["u"]  # the set's velocities: the next step's (compact, (2, n))
-        velocity_on(h, hu, hv, nodes, self.kappa, self.ux.x.array, self.uy.x.array, ux, uy)
+        velocity_on(h, hu, hv, nodes, self.kappa, self._ux, self._uy, ux, uy)
         if self.slope is not None:
             self.gn[nodes] = on["slope"].pressure_gravity(ux, uy)
         low_order_pass(on["cells"], on["beta"], on["beta_norm"], on["C"], h, hu, hv, z,
-                       self.ux.x.array, self.uy.x.array, self.gn, self.kappa, on["lo"],
+                       self._ux, self._uy, self.gn, self.kappa, on["lo"],
                        on["cap"], self.signed_capacity)
         # nodal sums of the rates and of the capacities in one exchange
         self._sums = self.active.cell_sum(on["lo_cap"])
