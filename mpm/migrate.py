@@ -4,10 +4,12 @@ DAMPM's grid sums are exact (:mod:`fem_runout.exact_sum`) and its nodal grid is 
 (:mod:`mpm.nodal`), so a particle may live on any rank: the result has the same bits whatever
 the split. The split is therefore chosen for speed, not by the mesh partition (a flow covering
 a small, moving part of the DEM sat 80 % on one of two ranks when particles followed the owner
-of their cell): rank ``r`` holds the particles of a strip of grid rows with about ``N/P``
+of their cell): rank ``r`` holds the particles of a strip of the grid with about ``N/P``
 particles (:func:`balanced_destinations`), contiguous so that each rank writes to a compact
-range of nodes. The strips follow the particle counts per row (on a gmsh mesh, each particle
-weighted by its estimated cost), integers summed over the ranks,
+range of nodes: a run of cells in row-major order on the grid (whole rows but at its ends),
+a strip across the domain on a gmsh mesh. The strips follow the particle counts per strip
+unit (``grid.rows``; on a gmsh mesh each particle weighted by its estimated cost), integers
+summed over the ranks,
 so they are the same on every rank and change only when the flow moves.
 
 The solver rebalances every :data:`REBALANCE_EVERY` steps, not every step: in between a
@@ -34,27 +36,36 @@ _WIDTH = len(FLOAT_FIELDS) + 2
 
 
 def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarray:
-    """Rank of every particle for strips of rows with equal particle counts (collective).
+    """Rank of every particle for strips with equal particle counts (collective).
 
-    Row ``k`` with ``c_k`` particles and ``C_k`` particles in the rows below goes to rank
-    ``floor(P (C_k + c_k/2) / N)``: monotone in ``k`` (strips), and every rank's count differs
-    from ``N/P`` by at most about one row's count. One allreduce of ``ny`` integers. On a gmsh
-    mesh a particle counts with its relative cost (``grid.balance_weights``: 1 inside its
-    cell, 2 across a side, 3 around a vertex); on the grid each counts 1.
+    Strip unit ``k`` (``grid.rows``: a cell of the grid, in row-major order; a band of cells
+    on a gmsh mesh) with ``c_k`` particles and ``C_k`` particles in the units before goes to
+    rank ``floor(P (C_k + c_k/2) / N)``: monotone in ``k`` (strips), and every rank's count
+    differs from ``N/P`` by at most about one unit's count. The counts are summed over the
+    ranks on the units between the first and the last one holding particles (one reduction
+    of that range, one of the counts): the flow's rows, not the DEM's. On a gmsh mesh a
+    particle counts with its relative cost (``grid.balance_weights``: 1 inside its cell, 2
+    across a side, 3 around a vertex); on the grid each counts 1.
     """
     comm = grid.comm
     rows = grid.rows(particles.cell)
     if comm.size == 1:
         return np.zeros(rows.size, dtype=np.int64)
+    span = np.array([-rows.min(initial=grid.n_rows), rows.max(initial=-1)], dtype=np.int64)
+    comm.Allreduce(MPI.IN_PLACE, span, op=MPI.MAX)
+    first, last = -int(span[0]), int(span[1])
+    if last < first:  # no particle anywhere
+        return np.zeros(rows.size, dtype=np.int64)
     weights = grid.balance_weights(particles)  # integers: the sums are exact on any split
-    counts = np.bincount(rows, weights, minlength=grid.n_rows).astype(np.int64)
+    unit = rows - first
+    counts = np.bincount(unit, weights, minlength=last - first + 1).astype(np.int64)
     comm.Allreduce(MPI.IN_PLACE, counts, op=MPI.SUM)
     total = int(counts.sum())
     if total == 0:
         return np.zeros(rows.size, dtype=np.int64)
     below = np.cumsum(counts) - counts
     rank_of_row = np.minimum((2 * below + counts) * comm.size // (2 * total), comm.size - 1)
-    return rank_of_row[rows]
+    return rank_of_row[unit]
 
 
 def migrate(grid: ParticleGrid, particles: Particles,

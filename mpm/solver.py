@@ -20,7 +20,7 @@ previous step):
    positions ``x_p += Δt v_p^{k+1}`` (eq. 39 with the updated velocity, cell-local);
 5. particles leaving through open sides are removed (their volume counted as outflow), the
    others are rebalanced over the ranks every :data:`mpm.migrate.REBALANCE_EVERY` steps
-   (strips of rows, :mod:`mpm.migrate`); P2G of the new state; projection of ``h, hu, hv``
+   (strips of cells, :mod:`mpm.migrate`); P2G of the new state; projection of ``h, hu, hv``
    onto Q1 for the outputs (:mod:`mpm.projection`).
 
 Forces (eq. 34): body ``-m_p g ∇Z(x_p) N_i`` and effective stress ``-V_p σ^∇_p ∇N_i`` with

@@ -66,7 +66,7 @@ class _Ids:
 
 
 def test_migration_neither_loses_nor_duplicates_particles():
-    # the pile drifts along y: the strips of rows that balance the particles (mpm.migrate)
+    # the pile drifts along y: the strips of cells that balance the particles (mpm.migrate)
     # move with it and particles change rank
     c = case("hemisphere", "method=mpm", "domain.extent=[15,35,15,35]", "domain.cells=[30,30]",
              "domain.boundary=wall", "time.end=2.0", "initial.velocity=['0', '2']")
