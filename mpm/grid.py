@@ -3,7 +3,7 @@
 Particles are located by structured-grid index arithmetic (no bounding-box search): on the
 ``nx × ny`` rectangle a particle sits in column ``i`` and row ``j`` (structured index
 ``j nx + i``) at reference coordinates ``(ξ, η) ∈ [0, 1]²``; a displacement moves ``ξ`` and
-carries whole cells into ``i`` (:meth:`ParticleGrid.move`). Two dense tables, built once, turn
+carries whole cells into ``i`` (:meth:`ParticleGrid.displace`). Two dense tables, built once, turn
 the structured index into the local DOLFINx cell (owned cells only) and into the rank that
 owns the cell (for migration).
 
@@ -74,8 +74,9 @@ def _displace(cell, xi, eta, dx, dy, hx, hy, nx, ny, open_side):
     """Points moved by ``(dx, dy)`` [m]: ``(cell, ξ, η, out)`` (:meth:`ParticleGrid.displace`).
 
     ``open_side``: left, right, bottom, top. A point past an open side is ``out`` (its cell is
-    then meaningless); past a wall it is put on the wall. The arithmetic of
-    :meth:`ParticleGrid.move`, fused with the sides' tests (one pass, no temporaries).
+    then meaningless); past a wall it is put on the wall. ``ξ + dx/Δx`` carries its whole
+    part into the column (likewise ``η``), the sides are tested in the same pass (no
+    temporaries).
     """
     n = cell.size
     new_cell = np.empty(n, dtype=np.int64)
@@ -141,20 +142,6 @@ class ParticleGrid:
         i = np.clip(np.floor((x - self.xmin) / self.dx).astype(np.int64), 0, self.nx - 1)
         j = np.clip(np.floor((y - self.ymin) / self.dy).astype(np.int64), 0, self.ny - 1)
         return i, j
-
-    def move(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray, dx: np.ndarray,
-             dy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Displace particles by ``(dx, dy)`` metres in cell-local coordinates.
-
-        Returns:
-            ``(i, j, ξ, η)``: column and row (possibly outside ``[0, nx) × [0, ny)``) and the
-            reference coordinates in ``[0, 1)``.
-        """
-        s, t = xi + dx / self.dx, eta + dy / self.dy
-        di, dj = np.floor(s), np.floor(t)
-        i = cell % self.nx + di.astype(np.int64)
-        j = cell // self.nx + dj.astype(np.int64)
-        return i, j, s - di, t - dj
 
     def basis(self, cell: np.ndarray, xi: np.ndarray, eta: np.ndarray) -> Basis:
         """Q1 basis values and gradients at particles in the owned cells of this rank.

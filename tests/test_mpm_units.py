@@ -56,13 +56,22 @@ def test_closed_form_basis_equals_basix_tabulation(grid):
     assert np.abs(b.dN[:, :, 1] * grid.dy - tab[2, :, :, 0]).max() < 1e-14
 
 
-def test_move_carries_whole_cells(grid):
-    cell = np.array([0, 0, grid.nx + 2])
-    i, j, xi, eta = grid.move(cell, np.array([0.5, 0.5, 0.25]), np.array([0.5, 0.5, 0.5]),
-                              np.array([2.5 * grid.dx, -grid.dx, 0.0]),
-                              np.array([0.0, 0.0, -1.75 * grid.dy]))
-    assert list(i) == [3, -1, 2] and list(j) == [0, 0, -1]
-    assert np.allclose(xi, [0.0, 0.5, 0.25]) and np.allclose(eta, [0.5, 0.5, 0.75])
+@pytest.mark.parametrize("side", ["open", "wall"])
+def test_displace_carries_whole_cells_and_stops_at_the_sides(side):
+    g = ParticleGrid(build_discretization(COMM, (100.0, 112.0, -3.0, 4.0), (6, 7),
+                                          dict.fromkeys(("left", "right", "bottom", "top"), side)))
+    # one move across cells inside, one past the left side, one past the bottom
+    cell, xi, eta, out, swap = g.displace(
+        np.array([0, 0, g.nx + 2]), np.array([0.5, 0.5, 0.25]), np.array([0.5, 0.5, 0.5]),
+        np.array([2.5 * g.dx, -g.dx, 0.0]), np.array([0.0, 0.0, -1.75 * g.dy]))
+    assert swap is None
+    assert cell[0] == 3 and xi[0] == 0.0 and eta[0] == 0.5
+    if side == "open":
+        assert list(out) == [False, True, True]
+    else:  # put on the wall: the left side's column 0 at ξ = 0, the bottom row at η = 0
+        assert not out.any()
+        assert cell[1] == 0 and xi[1] == 0.0 and eta[1] == 0.5
+        assert cell[2] == 2 and xi[2] == 0.25 and eta[2] == 0.0
 
 
 def test_seeded_volume_equals_the_lumped_nodal_volume(grid):
