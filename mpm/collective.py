@@ -60,7 +60,8 @@ class CollectiveSteps:
         particles are split again and the terms recomputed.
 
         Returns:
-            ``(mass, forces, local, bounds, union)``: :func:`mpm.exchange.p2g_bounds`'s.
+            ``(mass, area, forces, local, bounds, union)``: the particles' masses and column
+            areas, and :func:`mpm.exchange.p2g_bounds`'s.
         """
         while True:
             p, g = self.particles, self.grid
@@ -68,15 +69,15 @@ class CollectiveSteps:
             forces, self._gp, self._slope, self._speed = self.k.particle_forces(
                 b.arrays, self.z_g, self._hess, self._still, self.rho, self.g, p.volume,
                 p.h, p.u, p.v, p.sxx, p.syy, p.sxy)
-            mass = self.rho * p.volume
+            mass, area = self.rho * p.volume, p.area
             speeds = p.transfer_speeds(g.dx, g.dy, self.apic)
-            local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, p.area, p.volume)
+            local = self.k.transfer_bounds(b.arrays, mass, *speeds, forces, area, p.volume)
             pending, self._pending = self._pending, None
             if pending is None:
-                return mass, forces, local, *p2g_bounds(local, self.comm)
+                return mass, area, forces, local, *p2g_bounds(local, self.comm)
             sent = self.comm.allgather((pending.payload, local))
             if not self.splitter.settle(p, pending, [s[0] for s in sent]):
-                return mass, forces, local, *p2g_bounds_of([s[1] for s in sent])
+                return mass, area, forces, local, *p2g_bounds_of([s[1] for s in sent])
             self.particles = self.splitter.split(p)  # rare: a domain more than twice too wide
 
     def _momentum_sums(self, mass: np.ndarray, top: np.ndarray) -> np.ndarray:

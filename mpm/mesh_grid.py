@@ -93,6 +93,8 @@ class MeshParticleGrid:
     """
 
     structured = False
+    #: the strip units are bands of cells: the particles' own costs weigh them (balance_weights)
+    unit_cost = 0
 
     def __init__(self, disc: Discretization) -> None:
         self.disc, self.comm = disc, disc.comm

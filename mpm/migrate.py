@@ -8,9 +8,9 @@ of their cell): rank ``r`` holds the particles of a strip of the grid with about
 particles (:func:`balanced_destinations`), contiguous so that each rank writes to a compact
 range of nodes: a run of cells in row-major order on the grid (whole rows but at its ends),
 a strip across the domain on a gmsh mesh. The strips follow the particle counts per strip
-unit (``grid.rows``; on a gmsh mesh each particle weighted by its estimated cost), integers
-summed over the ranks,
-so they are the same on every rank and change only when the flow moves.
+unit (``grid.rows``; on a gmsh mesh each particle weighted by its estimated cost; on the grid
+each cell holding particles adds ``grid.unit_cost`` for its nodes' work), integers summed over
+the ranks, so they are the same on every rank and change only when the flow moves.
 
 The solver rebalances every :data:`REBALANCE_EVERY` steps, not every step: in between a
 particle stays on its rank wherever it moves (the results do not depend on where particles
@@ -36,16 +36,19 @@ _WIDTH = len(FLOAT_FIELDS) + 2
 
 
 def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarray:
-    """Rank of every particle for strips with equal particle counts (collective).
+    """Rank of every particle for strips with equal estimated costs (collective).
 
     Strip unit ``k`` (``grid.rows``: a cell of the grid, in row-major order; a band of cells
-    on a gmsh mesh) with ``c_k`` particles and ``C_k`` particles in the units before goes to
+    on a gmsh mesh) of cost ``c_k`` and ``C_k`` the cost of the units before goes to
     rank ``floor(P (C_k + c_k/2) / N)``: monotone in ``k`` (strips), and every rank's count
     differs from ``N/P`` by at most about one unit's count. The counts are summed over the
     ranks on the units between the first and the last one holding particles (one reduction
     of that range, one of the counts): the flow's rows, not the DEM's. On a gmsh mesh a
     particle counts with its relative cost (``grid.balance_weights``: 1 inside its cell, 2
-    across a side, 3 around a vertex); on the grid each counts 1.
+    across a side, 3 around a vertex); on the grid each counts 1 and a cell holding any adds
+    ``grid.unit_cost`` (:data:`mpm.grid.CELL_COST`): the work of its nodes (the P2G box,
+    the nodal update and friction), which is not the same per particle on every strip — a
+    deposit's thin margins hold few particles per cell, a moving front many.
     """
     comm = grid.comm
     rows = grid.rows(particles.cell)
@@ -60,6 +63,7 @@ def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarra
     unit = rows - first
     counts = np.bincount(unit, weights, minlength=last - first + 1).astype(np.int64)
     comm.Allreduce(MPI.IN_PLACE, counts, op=MPI.SUM)
+    counts += grid.unit_cost * (counts > 0)
     total = int(counts.sum())
     if total == 0:
         return np.zeros(rows.size, dtype=np.int64)

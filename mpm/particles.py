@@ -149,9 +149,13 @@ class Particles:
             getattr(self, name)[idx] = quad[:, k]
 
     def affine(self) -> np.ndarray:
-        """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC; zeros without it)."""
+        """(4, n) affine velocities ``C_xx, C_xy, C_yx, C_yy`` (APIC; zeros without it).
+
+        Without APIC the zeros are one shared array per size (the kernels only read it; the
+        P2G and the next step's MUSL sums take it for the same particles).
+        """
         if not self.has_affine:
-            return np.zeros((len(AFFINE_FIELDS), len(self)))
+            return _zero_rows(len(AFFINE_FIELDS), len(self))
         return np.stack([self.cxx, self.cxy, self.cyx, self.cyy])
 
     def transfer_speeds(self, dx: float, dy: float, apic: bool
@@ -251,6 +255,18 @@ class Particles:
         """Join several particle sets."""
         return cls(**{f.name: _join([getattr(p, f.name) for p in parts], f.name)
                       for f in fields(cls)})
+
+
+_ZERO_ROWS: dict[tuple[int, int], np.ndarray] = {}
+
+
+def _zero_rows(rows: int, n: int) -> np.ndarray:
+    """Return a (rows, n) array of zeros that nothing writes to (the last one of its size)."""
+    key = (rows, n)
+    if key not in _ZERO_ROWS:
+        _ZERO_ROWS.clear()
+        _ZERO_ROWS[key] = np.zeros(key)
+    return _ZERO_ROWS[key]
 
 
 def _copy(a: np.ndarray | None) -> np.ndarray | None:

@@ -358,12 +358,12 @@ class MPMSolver(CollectiveSteps):
     def _refresh(self) -> None:
         """Basis at the particles, P2G of the current state, Q1 projection for the outputs."""
         self._limits: tuple[float, float] | None = None
-        mass, forces, local, bounds, union = self._particle_terms()
+        mass, area, forces, local, bounds, union = self._particle_terms()
         p, b = self.particles, self._basis
         self._musl_bound = 2.0 * bounds[1:3]  # m |v| may grow within the step (_momentum_sums)
         ext = fold_extractors(bounds, self.splitter.next_id)
         box = self._box = self.nodal.box(local[11:])
-        folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, p.area, p.volume,
+        folds = self.k.p2g(b.arrays, mass, p.u, p.v, p.affine(), *forces, area, p.volume,
                     self._box_args, ext)
         left = np.array([self._left])  # the volume _move removed, in the folds' message
         totals = self.exchange.start(folds, box, self.nodal.box(union), left)
