@@ -343,7 +343,9 @@ class Transport:
                 un = np.maximum(u[0, i] * n[:, 0] + u[1, i] * n[:, 1], 0.0)
                 out += float(np.sum(side.weight[own] * q0[i, 0] * un))
         # one exchange: the largest depth (the same threshold on any partition), the outflow
-        every = self.disc.comm.allgather((local, out))
-        hmax = max(h for h, _ in every)
-        self.outflow_volume += self._dt * sum(o for _, o in every)
+        comm = self.disc.comm
+        every = np.empty((comm.size, 2))
+        comm.Allgather(np.array([local, out]), every)
+        hmax = float(every[:, 0].max())
+        self.outflow_volume += self._dt * sum(every[:, 1].tolist())  # in rank order
         settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)
