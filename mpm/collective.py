@@ -75,9 +75,10 @@ class CollectiveSteps:
             pending, self._pending = self._pending, None
             if pending is None:
                 return mass, area, forces, local, *p2g_bounds(local, self.comm)
-            sent = self.comm.allgather((pending.payload, local))
+            sent = self.comm.allgather((pending.payload, local.tobytes()))
             if not self.splitter.settle(p, pending, [s[0] for s in sent]):
-                return mass, area, forces, local, *p2g_bounds_of([s[1] for s in sent])
+                bounds = p2g_bounds_of([np.frombuffer(s[1], dtype=local.dtype) for s in sent])
+                return mass, area, forces, local, *bounds
             self.particles = self.splitter.split(p)  # rare: a domain more than twice too wide
 
     def _momentum_sums(self, mass: np.ndarray, top: np.ndarray) -> np.ndarray:

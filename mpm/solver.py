@@ -35,7 +35,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_runout.exact_sum import fold_extractors
-from fem_runout.health import reduce_flag
+from fem_runout.health import reduce_flag, state_flag
 from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
@@ -253,7 +253,7 @@ class MPMSolver(CollectiveSteps):
         """
         local = self._problem or ""
         p = self.particles
-        if not local and not all(np.isfinite(getattr(p, k)).all() for k in ("h", "u", "v")):
+        if not local and state_flag(p.h, p.u, p.v, len(p)) == 2:  # one pass, no copies
             local = "the particle state has NaN or infinite values"
         with np.errstate(all="ignore"):  # (of a bad state: not used)
             limits = self._local_limits()

@@ -91,8 +91,13 @@ class PendingIds:
 
     @property
     def payload(self) -> tuple:
-        """What the other ranks need (:meth:`DomainSplitter.settle`'s ``sent``)."""
-        return self.x_parents, self.y_known, self.x_parents[self.y_pending], self.wide
+        """What the other ranks need (:meth:`DomainSplitter.settle`'s ``sent``).
+
+        The id arrays travel as their bytes: a pickled message of bytes costs microseconds,
+        one of NumPy arrays tens to a hundred (every step).
+        """
+        return (self.x_parents.tobytes(), self.y_known.tobytes(),
+                self.x_parents[self.y_pending].tobytes(), bool(self.wide))
 
 
 class DomainSplitter:
@@ -177,12 +182,13 @@ class DomainSplitter:
         Returns:
             Whether a domain on some rank is still too wide (split again).
         """
-        all_x = np.sort(np.concatenate([s[0] for s in sent]))
+        ids = [[np.frombuffer(b, dtype=pending.x_parents.dtype) for b in s[:3]] for s in sent]
+        all_x = np.sort(np.concatenate([s[0] for s in ids]))
         x_first = self.next_id
         y_first = x_first + all_x.size
         x_ids = x_first + np.searchsorted(all_x, pending.x_parents)
-        pending_y = [x_first + np.searchsorted(all_x, s[2]) for s in sent]
-        all_y = np.sort(np.concatenate([s[1] for s in sent] + pending_y))
+        pending_y = [x_first + np.searchsorted(all_x, s[2]) for s in ids]
+        all_y = np.sort(np.concatenate([s[1] for s in ids] + pending_y))
         mine_y = np.concatenate([pending.y_known, x_ids[pending.y_pending]])
         y_ids = y_first + np.searchsorted(all_y, mine_y)
         start = pending.start
