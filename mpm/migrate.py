@@ -4,8 +4,8 @@ DAMPM's grid sums are exact (:mod:`fem_runout.exact_sum`) and its nodal grid is 
 (:mod:`mpm.nodal`), so a particle may live on any rank: the result has the same bits whatever
 the split. The split is therefore chosen for speed, not by the mesh partition (a flow covering
 a small, moving part of the DEM sat 80 % on one of two ranks when particles followed the owner
-of their cell): rank ``r`` holds the particles of a strip of the grid with about ``N/P``
-particles (:func:`balanced_destinations`), contiguous so that each rank writes to a compact
+of their cell): rank ``r`` holds the particles of a strip of the grid with about ``1/P`` of
+the estimated cost (:func:`balanced_destinations`), contiguous so that each rank writes to a compact
 range of nodes: a run of cells in row-major order on the grid (whole rows but at its ends),
 a strip across the domain on a gmsh mesh. The strips follow the particle counts per strip
 unit (``grid.rows``; on a gmsh mesh each particle weighted by its estimated cost; on the grid
@@ -40,9 +40,9 @@ def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarra
 
     Strip unit ``k`` (``grid.rows``: a cell of the grid, in row-major order; a band of cells
     on a gmsh mesh) of cost ``c_k`` and ``C_k`` the cost of the units before goes to
-    rank ``floor(P (C_k + c_k/2) / N)``: monotone in ``k`` (strips), and every rank's count
-    differs from ``N/P`` by at most about one unit's count. The counts are summed over the
-    ranks on the units between the first and the last one holding particles (one reduction
+    rank ``floor(P (C_k + c_k/2) / N)``, ``N`` the total cost: monotone in ``k`` (strips), and
+    every rank's cost differs from ``N/P`` by at most about one unit's. The counts are summed
+    over the ranks on the units between the first and the last one holding particles (one reduction
     of that range, one of the counts): the flow's rows, not the DEM's. On a gmsh mesh a
     particle counts with its relative cost (``grid.balance_weights``: 1 inside its cell, 2
     across a side, 3 around a vertex); on the grid each counts 1 and a cell holding any adds

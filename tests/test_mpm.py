@@ -11,6 +11,7 @@ from fem_runout.methods import get
 from fem_runout.references.inclined_dam_break import exact_front
 from fem_runout.references.norms import front_radius
 from fem_runout.runner import Runner, Schedule
+from tests.mpm_messages import PILE
 from tests.tg2_helpers import case, lake_errors
 
 COMM = MPI.COMM_SELF
@@ -155,3 +156,18 @@ def test_a_collapsing_column_stops_the_run_with_the_state_kept():
     solver.update_depth_and_stress(0.5, np.where(np.arange(len(p))[:, None, None] == 7,
                                                   0.0, grad))
     assert np.allclose(solver.particles.h[:7], h0[:7] / 0.75, rtol=1e-15)
+
+
+def test_dampm_health_names_non_finite_particle_values():
+    """A NaN or an infinite depth or velocity on any particle fails the step's health check."""
+    solver = build_solver(case("hemisphere", *PILE), COMM)
+    solver.advance(0.5 * solver.stable_dt())
+    assert solver.health() is None
+    p = solver.particles
+    for name, value in (("u", np.nan), ("v", -np.inf), ("h", np.inf)):
+        column = getattr(p, name)
+        k = len(p) // 2
+        kept, column[k] = column[k], value
+        assert solver.health() == "the particle state has NaN or infinite values"
+        column[k] = kept
+        assert solver.health() is None
