@@ -108,7 +108,7 @@ def plot_series(results: dict[str, Any], path: Path, title: str) -> None:
         ax_front.plot(s["t"], s["front_x"], label=name)
         ax_mass.plot(s["t"], s["mass_error"], label=name)
     ax_front.set(xlabel="t [s]", ylabel="front x [m]", title="front position")
-    ax_mass.set(xlabel="t [s]", ylabel="(V + outflow − V0)/V0", title="volume balance")
+    ax_mass.set(xlabel="t [s]", ylabel="(V + outflow + dried − V0)/V0", title="volume balance")
     for ax in (ax_front, ax_mass):
         ax.grid(True, alpha=0.3)
         ax.legend()
@@ -126,7 +126,8 @@ def report(case_path: str, out: Path, results: dict[str, Any], ranks: int) -> st
             "final front x [m]": lambda r: f"{r.series['front_x'][-1]:.3f}",
             "max depth at end [m]": lambda r: f"{r.h.max():.4f}",
             "max relative volume error": lambda r: f"{np.abs(r.series['mass_error']).max():.2e}",
-            "outflow [m³]": lambda r: f"{r.series['outflow'][-1]:.4g}"}
+            "outflow [m³]": lambda r: f"{r.series['outflow'][-1]:.4g}",
+            "dried films [m³]": lambda r: f"{r.series['dried'][-1]:.3g}"}
     for label, fmt in rows.items():
         cells = [fmt(results[m]) if m in results else "not implemented" for m in ALL_METHODS]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")

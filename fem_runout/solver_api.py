@@ -34,6 +34,8 @@ class Solver(Protocol):
         lumped_mass: Lumped Q1 mass (nodal area) for the local nodes, owned then ghosts.
         outflow_volume: Volume that has left through open boundaries so far (global, the same
             on every rank).
+        dried_volume: Volume of the films that dried out so far (global; 0 for a method
+            that dries none). Volume + outflow + dried is the released volume.
         n_particles: Global particle count (collective), or None for a mesh-only method.
     """
 
@@ -46,6 +48,11 @@ class Solver(Protocol):
     @property
     def outflow_volume(self) -> float:
         """Volume that has left through open boundaries so far [m³] (global)."""
+        ...
+
+    @property
+    def dried_volume(self) -> float:
+        """Volume of the films that dried out so far [m³] (global; 0 if none)."""
         ...
 
     @property

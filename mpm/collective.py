@@ -22,6 +22,9 @@ __all__ = ["CollectiveSteps"]
 class CollectiveSteps:
     """The messages of :class:`mpm.solver.MPMSolver`'s step and its state I/O (a mix-in)."""
 
+    #: DAMPM dries no films: its particles keep their volume until they leave the domain
+    dried_volume = 0.0
+
     def save_state(self) -> dict:
         """Return every particle (all attributes, sorted by id) and counters (collective)."""
         rows = self.comm.gather(self.particles.pack(), root=0)

@@ -31,5 +31,6 @@ def fake_solver(comm, formulas, cells=(8, 4), size=(4.0, 2.0)):
     n_owned = V.dofmap.index_map.size_local
     return SimpleNamespace(
         comm=comm, mesh=msh, V=V, fields=fields, lumped_mass=mass.array.copy(), outflow_volume=0.0,
+        dried_volume=0.0,
         flow_dofs=lambda: np.arange(n_owned),
     )

@@ -30,9 +30,9 @@ RUNS = {
     "msh": ("cases/curved_channel.yaml", ["time.end=0.9", "output.every=0.3"]),  # gmsh mesh
 }
 FINAL = ("h", "hu", "hv", "peak_depth", "peak_speed")
-SUMMARY = ("released_volume", "deposit_volume", "outflow_volume", "affected_area",
-           "peak_depth_max", "peak_speed_max", "peak_pressure_max", "runout_length", "t_end",
-           "steps", "at_rest")
+SUMMARY = ("released_volume", "deposit_volume", "outflow_volume", "dried_volume",
+           "affected_area", "peak_depth_max", "peak_speed_max", "peak_pressure_max",
+           "runout_length", "t_end", "steps", "at_rest")
 
 
 def case_of(name: str, method: str, out: Path, *extra: str):

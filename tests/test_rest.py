@@ -21,7 +21,7 @@ class _Decaying:
                                                  "hu": lambda x, y: 1.0 + 0 * x,
                                                  "hv": lambda x, y: 0 * x, "z": lambda x, y: 0 * x})
         for name in ("comm", "mesh", "V", "fields", "lumped_mass", "outflow_volume",
-                     "flow_dofs"):
+                     "dried_volume", "flow_dofs"):
             setattr(self, name, getattr(self.base, name))
         self.t = 0.0
 

@@ -39,7 +39,8 @@ class _Watch:
         own = slice(0, solver.disc.n_owned_nodes)
         h = solver.fields["h"].x.array[own]
         self.min_h.append(h.min())
-        self.volumes.append(float(np.sum(solver.lumped_mass[own] * h)))
+        # the volume on the nodes plus the films that dried out (serial: one rank's sum)
+        self.volumes.append(float(np.sum(solver.lumped_mass[own] * h)) + solver.dried_volume)
 
     def output(self, solver, info):
         pass

@@ -4,7 +4,8 @@ Criteria (issue 5), checked after every step of the run:
 
 * the run reaches its end time (the runner raises on NaN or negative depth);
 * no NaN in ``h``, ``hu``, ``hv`` and ``h >= 0`` at every node;
-* volume balance: ``|V(t) + outflow(t) - V0| <= 1e-10 V0`` (outflow is 0 on closed domains);
+* volume balance: ``|V(t) + outflow(t) + dried(t) - V0| <= 1e-10 V0`` (outflow is 0 on
+  closed domains; dried: the films that dried out);
 * ``max speed <= 0.9 (sqrt(2 g ΔZ) + 2 sqrt(g h_max))`` over the run (issue 13: the physical
   bound met with 10 % room, not within round-off of it), with ``ΔZ`` the elevation range of
   the domain and ``h_max`` the largest depth seen (speed on nodes with ``h > front_threshold``);
@@ -89,7 +90,7 @@ class HardResult:
         t: Time reached [s]; end: end time [s].
         steps: Number of steps; wall: wall time of the loop [s].
         min_h: Smallest depth seen; nan: NaN values seen.
-        volume_error: max over the run of |V + outflow - V0| / V0.
+        volume_error: max over the run of |V + outflow + dried - V0| / V0.
         max_speed: max over the run of the node speed; speed_bound: the allowed bound.
         fall_speed: free fall from the top of the release to the lowest bed plus the
             release's wave speed, ``sqrt(2 g (Z_top - Z_min)) + sqrt(g h0)``.

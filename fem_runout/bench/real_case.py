@@ -44,6 +44,7 @@ COLUMNS = (
     ("peak_speed_max", "peak speed [m/s]", "{:.1f}"),
     ("deposit_volume", "deposit volume [m³]", "{:.1f}"),
     ("outflow_volume", "outflow [m³]", "{:.3g}"),
+    ("dried_volume", "dried films [m³]", "{:.3g}"),
     ("mass_balance_error", "volume balance error", "{:.1e}"),
     ("t_end", "end time [s]", "{:.1f}"),
     ("at_rest", "at rest", "{}"),

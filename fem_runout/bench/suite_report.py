@@ -131,8 +131,9 @@ def _table2(results: dict) -> list[str]:
 
 def _hard(hard: dict[str, Rows]) -> list[str]:
     lines = ["## Hard cases for stability (`cases/hard/`, 1 rank)", "",
-             "Criteria: end time reached, no NaN, h ≥ 0 after every step, |V + outflow − V0| ≤ "
-             "1e-10 V0, max speed ≤ 0.9 (sqrt(2 g ΔZ) + 2 sqrt(g h_max)); below a vertical "
+             "Criteria: end time reached, no NaN, h ≥ 0 after every step, "
+             "|V + outflow + dried − V0| ≤ 1e-10 V0, max speed ≤ 0.9 (sqrt(2 g ΔZ) + "
+             "2 sqrt(g h_max)); below a vertical "
              "drop (cliff, drop) max speed ≤ 1.1 (free fall from the release top + sqrt(g h0)); "
              "the pit must be at rest (≤ 1e-3 m/s). The same criteria run in "
              "`tests/test_hard_cases.py` (1 rank) and `tests/mpi/test_hard_cases_mpi.py` "

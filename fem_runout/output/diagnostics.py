@@ -34,6 +34,7 @@ SERIES_COLUMNS: tuple[str, ...] = (
     "wet_area",
     "front_x",
     "outflow",
+    "dried",
 )
 
 
@@ -93,7 +94,8 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         ``volume`` [m^3] (``sum m_i h_i``), ``kinetic_energy`` [J] (``sum m_i rho/2 |hu|^2/h``
         over wet nodes), ``max_depth`` [m], ``max_speed`` [m/s] (over wet nodes, 0 if none),
         ``wet_area`` [m^2], ``front_x`` [m] (largest x of a wet node, nan if none) and
-        ``outflow`` [m^3] (``solver.outflow_volume``). The same on every rank.
+        ``outflow`` [m^3] (``solver.outflow_volume``), ``dried`` [m^3]
+        (``solver.dried_volume``). The same on every rank.
     """
     comm = solver.comm
     x, m, h, hu, hv = _owned(solver, x)
@@ -123,6 +125,7 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         "wet_area": float(sums[2]),
         "front_x": float(maxima[2]) if np.isfinite(maxima[2]) else float("nan"),
         "outflow": float(solver.outflow_volume),
+        "dried": float(solver.dried_volume),
     }
 
 
@@ -130,7 +133,7 @@ class SeriesRecorder:
     """Callback recording the time series of :func:`compute_diagnostics` to a CSV file.
 
     One row per recorded state (the initial state and every step) with the columns
-    :data:`SERIES_COLUMNS`; ``mass_error = (volume + outflow - V0) / V0`` with ``V0`` the
+    :data:`SERIES_COLUMNS`; ``mass_error = (volume + outflow + dried - V0) / V0`` with ``V0`` the
     initial volume (the absolute error if ``V0 == 0``). The CSV is written on rank 0 at every
     output and at finish, so a crashed run keeps its series.
     """
@@ -163,7 +166,7 @@ class SeriesRecorder:
         """Append one row for the current state (collective)."""
         diag = compute_diagnostics(solver, self.threshold, self.density, self._x)
         v0 = self.initial_volume
-        balance = diag["volume"] + diag["outflow"] - v0
+        balance = diag["volume"] + diag["outflow"] + diag["dried"] - v0
         row = {"t": info.t, "dt": info.dt, **diag}
         row["mass_error"] = balance / v0 if v0 != 0.0 else balance
         for name in SERIES_COLUMNS:

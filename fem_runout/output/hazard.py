@@ -282,11 +282,12 @@ class HazardMaps:
         h = self._owned(solver)[0]
         n = h.size
         deposit = exact_global_sum(solver.comm, solver.lumped_mass[:n] * h)
-        outflow = float(solver.outflow_volume)
+        outflow, dried = float(solver.outflow_volume), float(solver.dried_volume)
         released = self.summary["released_volume"]
-        self.summary.update(deposit_volume=deposit, outflow_volume=outflow,
-                            mass_balance_error=(deposit + outflow - released) / released
-                            if released else deposit + outflow)
+        left = deposit + outflow + dried
+        self.summary.update(deposit_volume=deposit, outflow_volume=outflow, dried_volume=dried,
+                            mass_balance_error=(left - released) / released
+                            if released else left)
         disc = getattr(solver, "disc", None)
         if disc is not None and not disc.structured:
             extra = self._finish_on_mesh(solver, disc, h, info.t)

@@ -60,6 +60,11 @@ class TG2Solver:
         """Volume that left through open boundaries so far [m³]."""
         return self.transport.outflow_volume
 
+    @property
+    def dried_volume(self) -> float:
+        """Volume of the films that dried out so far [m³] (:func:`.compact.dry_films`)."""
+        return self.transport.dried_volume
+
     def stable_dt(self) -> float:
         """Return the transport CFL limit, at most the slope acceleration limit.
 
@@ -138,7 +143,7 @@ class TG2Solver:
             bed = self.reaction.bed(state[:, 1:], nodes)
         return friction.unused_capacity(state[:, 0], state[:, 1], state[:, 2], dt, bed)
 
-    def snapshot(self) -> tuple[np.ndarray | None, np.ndarray, float]:
+    def snapshot(self) -> tuple[np.ndarray | None, np.ndarray, tuple[float, float]]:
         """Copy the state, to restore the last good step (valid until the next snapshot).
 
         Only the flow's nodes when the state is known to be zero elsewhere (the transport's
@@ -148,14 +153,15 @@ class TG2Solver:
         t = self.transport
         nodes = t.flow_nodes() if self.reaction is None or self.reaction.rheology is None \
             else None
+        volumes = (t.outflow_volume, t.dried_volume)
         if nodes is None:
             self._snap = t.state(self._snap)
-            return None, self._snap, t.outflow_volume
-        return nodes, t.state_on(nodes), t.outflow_volume
+            return None, self._snap, volumes
+        return nodes, t.state_on(nodes), volumes
 
-    def restore(self, snap: tuple[np.ndarray | None, np.ndarray, float]) -> None:
+    def restore(self, snap: tuple[np.ndarray | None, np.ndarray, tuple[float, float]]) -> None:
         """Restore a :meth:`snapshot`."""
-        nodes, q, outflow = snap
+        nodes, q, (outflow, dried) = snap
         t = self.transport
         if nodes is None:
             t.set_state(q)
@@ -163,11 +169,11 @@ class TG2Solver:
             full = np.zeros((t.h.x.array.size, 3))
             full[nodes] = q
             t.set_state(full)
-        t.outflow_volume = outflow
+        t.outflow_volume, t.dried_volume = outflow, dried
         self._limits = None
 
     def save_state(self) -> dict:
-        """Return ``(h, hu, hv)`` in the global node order and the outflow (collective)."""
+        """Return ``(h, hu, hv)`` in the global node order, outflow and dried (collective)."""
         from fem_runout.output.gather import gather_nodal
 
         t = self.transport
@@ -175,7 +181,8 @@ class TG2Solver:
         arrays = {"h": q[:, 0], "hu": q[:, 1], "hv": q[:, 2]}
         if t.active_set and t.active.seed is not None:
             arrays["active_seed"] = t.active.seed  # the wet nodes the active set was built on
-        return {"nodes": gather_nodal(self.V, arrays), "outflow": float(t.outflow_volume)}
+        return {"nodes": gather_nodal(self.V, arrays), "outflow": float(t.outflow_volume),
+                "dried": float(t.dried_volume)}
 
     def load_state(self, state: dict) -> None:
         """Continue from :meth:`save_state` (collective; any rank count)."""
@@ -185,6 +192,7 @@ class TG2Solver:
         local = scatter_nodal(self.V, state["nodes"])
         t.set_state(np.stack([local["h"], local["hu"], local["hv"]], axis=1))
         t.outflow_volume = float(state["outflow"])
+        t.dried_volume = float(state.get("dried", 0.0))  # checkpoints before the drying: 0
         self._limits = None
         if t.active_set and "active_seed" in local:
             t.active.rebuild(local["active_seed"])  # the uninterrupted run's very set

@@ -11,7 +11,8 @@ One call of :meth:`Transport.step` advances ``(h, hu, hv)`` on the Q1 nodes by `
    patch bounds, momenta within the patch's and the bar states' bounds), Lipschitz in the
    data; ``m_i Q^{n+1} = m_i Q^L + Σ_K (Σ_j f*_ij + μ*_i)``; then the speed bound of
    :func:`.bounds.bound_speed` (Riemann invariant plus bed drop, continuous weights);
-6. boundary fluxes (open: outflow with the node's own state; wall: zero normal momentum).
+6. boundary fluxes (open: outflow with the node's own state; wall: zero normal momentum);
+7. films thinner than the dry tolerance dry out continuously (:func:`.compact.dry_films`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from fem_runout.stepping import acceleration_limit
 from fem_runout.tg2 import bounds
 from fem_runout.tg2.compact import (
     antidiffusive,
+    dry_films,
     gather_state,
     low_state,
     min_ratio,
@@ -105,6 +107,8 @@ class Transport:
         self.limiter = Limiter(disc, self.gn, self.kappa)
         self.mass_correction = MassCorrection(disc, self.kappa) if mass_correction else None
         self.outflow_volume = 0.0
+        #: volume of the films that dried out so far (:func:`.compact.dry_films`) [m³]
+        self.dried_volume = 0.0
         self._beta = self.limiter.beta_all
         self._fresh = False  # low-order rates of the current state are cached
         self._dt = 0.0  # the step being taken
@@ -289,7 +293,7 @@ class Transport:
             corr = a.cell_sum(aec)
         q_new = new_state(q_low, corr, m)
         bounds.bound_speed(q_low, q_new, ext[-1], gn)
-        self._finalise(q_new, q0, u)
+        self._finalise(q_new, q0, u, m)
         self.set_state_on(nodes, q_new)
 
     # -- pieces ------------------------------------------------------------------------------
@@ -321,19 +325,22 @@ class Transport:
         a = self.active
         return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g, speed, gn)
 
-    def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray) -> None:
-        """Walls: zero normal momentum; thin layers: damped momentum; outflow bookkeeping.
+    def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray, m: np.ndarray) -> None:
+        """Walls: zero normal momentum; films dry; thin layers: damped momentum; bookkeeping.
 
-        ``q`` (new), ``q0`` and ``u`` (start of the step) hold the active set's nodes
-        (compact); the others are exactly dry.
+        ``q`` (new), ``q0`` and ``u`` (start of the step) and the lumped masses ``m`` hold the
+        active set's nodes (compact); the others are exactly dry. Films thinner than the dry
+        tolerance dry out continuously (:func:`.compact.dry_films`), their volume counted in
+        :attr:`dried_volume`.
         """
         a = self.active
         sides = a.sides()
         zero_wall_normal(sides, q[:, 1], q[:, 2])
+        owned = a.n_owned_nodes
+        dried = dry_films(q, self.tol, m, owned)
         # round-off below zero (|h| < 1e-13 h_max) is set to 0; a real negative depth is kept
         # so that the runner stops with a message
         local = float(np.max(np.abs(q[:, 0]))) if q.shape[0] else 0.0
-        owned = a.n_owned_nodes
         out = 0.0
         for side in sides:
             if side.kind == "open" and side.nodes.size:
@@ -343,9 +350,11 @@ class Transport:
                 un = np.maximum(u[0, i] * n[:, 0] + u[1, i] * n[:, 1], 0.0)
                 out += float(np.sum(side.weight[own] * q0[i, 0] * un))
         # one exchange: the largest depth (the same threshold on any partition), the outflow
+        # and the dried volume
         comm = self.disc.comm
-        every = np.empty((comm.size, 2))
-        comm.Allgather(np.array([local, out]), every)
+        every = np.empty((comm.size, 3))
+        comm.Allgather(np.array([local, out, dried]), every)
         hmax = float(every[:, 0].max())
         self.outflow_volume += self._dt * sum(every[:, 1].tolist())  # in rank order
+        self.dried_volume += sum(every[:, 2].tolist())
         settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)
