@@ -46,6 +46,7 @@ lint: setup
 # the suite runs every benchmark with every implemented method on 1 and 2 ranks (< 30 min);
 # footprint: avaKot on its DEM and on a 4x larger padded one, both methods (about 6 min);
 # meshes: TG2-PC on gmsh meshes against the grid, Thacker, hemisphere, avaKot (docs/meshes.md);
+# corridor-spread: the avaKot corridor against the 5 m grid over 6 perturbed draws each (~27 min);
 # the TG2-only fine-grid report is `$(PY) -m fem_runout.bench tg2-report` (about 12 min)
 bench: setup
 	$(PY) -m fem_runout.bench suite --ranks 1 2 3 --out docs/benchmarks.md --figures docs/figures
@@ -59,6 +60,7 @@ bench: setup
 		$(PY) -m fem_runout.bench footprint --out docs/performance.md; \
 		$(PY) -m fem_runout.bench scaling --side-by-side --out docs/performance.md; \
 		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --out docs/meshes.md; \
+		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench corridor-spread --members 6 --out docs/meshes.md; \
 	else echo "footprint: skipped, no avaKot data under FEM_RUNOUT_DATA (docs/real_terrain.md)"; \
 		$(MPIEXEC) -n 2 $(PY) -m fem_runout.bench meshes --only thacker hemisphere \
 			--out docs/meshes.md; fi

@@ -74,8 +74,10 @@ def locate(solver, depth: float) -> str:
     local = (float(bad.max()), None) if bad.size else (-np.inf, None)
     if bad.size:
         k = int(np.argmax(bad))
-        xy = solver.V.tabulate_dof_coordinates()[np.arange(h.size)[k] if isinstance(idx, slice)
-                                                 else idx[k]]
+        from fem_runout.output.gather import node_coordinates
+
+        xy = node_coordinates(solver.V)[np.arange(h.size)[k] if isinstance(idx, slice)
+                                        else idx[k]]
         local = (local[0], (float(xy[0]), float(xy[1])))
     worst = max(solver.comm.allgather(local), key=lambda item: item[0])
     if worst[1] is None or worst[0] <= 0:

@@ -68,6 +68,20 @@ def test_gather_nodal_sorted_by_y_then_x():
     assert grid_shape(g["x"], g["y"]) == (NX, NY)
 
 
+def test_gathered_coordinates_are_the_meshs_own_numbers():
+    """x = 50 on a 2.5 m grid is 50 exactly, not the last-bit push-forward of the tabulation."""
+    from fem_runout.output.gather import node_coordinates
+
+    s = fake_solver(MPI.COMM_WORLD, {k: (lambda x, y: 0 * x) for k in ("h", "hu", "hv", "z")},
+                    (40, 2), (100.0, 2.0))
+    np.testing.assert_allclose(node_coordinates(s.V), s.V.tabulate_dof_coordinates(),
+                               rtol=0, atol=1e-12)
+    g = gather_nodal(s.V, {"h": s.fields["h"].x.array})
+    if g is not None:
+        assert np.array_equal(g["x"].reshape(3, 41), np.tile(np.arange(41) * 2.5, (3, 1)))
+        assert np.count_nonzero(g["x"] > 50.0) == 3 * 20
+
+
 def test_gather_nodal_rejects_short_arrays():
     s = linear_solver()
     with pytest.raises(ValueError, match="owned"):

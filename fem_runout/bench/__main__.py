@@ -7,6 +7,7 @@ from types import ModuleType
 
 from fem_runout.bench import (
     before_after,
+    corridor_spread,
     dampm_report,
     dem_sampling,
     dry_sensitivity,
@@ -36,6 +37,7 @@ COMMANDS: dict[str, ModuleType] = {
     "footprint": footprint,
     "scaling": scaling,
     "meshes": meshes,
+    "corridor-spread": corridor_spread,
     "side-by-side": side_by_side,
     "ensemble-throughput": ensemble_throughput,
     "ensemble-report": ensemble_report,

@@ -15,7 +15,7 @@ from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
 from fem_runout.output.envelopes import fold_envelopes
-from fem_runout.output.gather import gather_nodal
+from fem_runout.output.gather import gather_nodal, node_coordinates
 
 if TYPE_CHECKING:
     from fem_runout.callbacks import StepInfo
@@ -69,7 +69,7 @@ def _owned(solver: Solver, x: np.ndarray | None = None) -> tuple[np.ndarray, ...
 def owned_x(solver: Solver) -> np.ndarray:
     """Return the x coordinate of the owned nodes (for :func:`compute_diagnostics`'s ``x``)."""
     n = solver.V.dofmap.index_map.size_local
-    return solver.V.tabulate_dof_coordinates()[:n, 0].copy()
+    return node_coordinates(solver.V)[:n, 0].copy()
 
 
 def _rank_order_sum(rows: np.ndarray) -> np.ndarray:

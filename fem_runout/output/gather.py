@@ -11,7 +11,7 @@ from dolfinx import fem
 
 __all__ = [
     "exact_global_sum", "gather_nodal", "global_max", "global_min", "global_sum",
-    "sorted_node_order",
+    "node_coordinates", "sorted_node_order",
 ]
 
 # Coordinates are rounded to this fraction of the domain extent before sorting, so that
@@ -76,6 +76,35 @@ def global_min(comm: MPI.Comm, value: float) -> float:
     return float(comm.allreduce(float(value), op=MPI.MIN))
 
 
+def node_coordinates(V: fem.FunctionSpace) -> np.ndarray:
+    """Coordinates of the local nodes (owned, then ghosts) of a degree-1 Lagrange space.
+
+    Taken from the mesh geometry, so they are the mesh's own numbers, bit for bit.
+    ``tabulate_dof_coordinates`` pushes the reference points forward through each cell's
+    map instead, which leaves a last-bit error that depends on the cell a rank holds and on
+    the CPU's floating-point kernels (x = 50 came out as 50.000000000000007 on one machine and
+    49.999999999999993 on another).
+
+    Args:
+        V: A Q1 space (scalar or blocked) on a mesh with Q1 geometry.
+
+    Returns:
+        (n_local, 3) coordinates; row ``i`` belongs to local node ``i``.
+    """
+    msh = V.mesh
+    tdim = msh.topology.dim
+    cells = msh.topology.index_map(tdim)
+    n_cells = cells.size_local + cells.num_ghosts
+    dofs = np.asarray(V.dofmap.list[:n_cells])
+    geo = np.asarray(msh.geometry.dofmaps[0][:n_cells])
+    if dofs.shape != geo.shape:
+        raise ValueError("node_coordinates needs the mesh's own degree (Q1 on Q1 geometry)")
+    imap = V.dofmap.index_map
+    out = np.empty((imap.size_local + imap.num_ghosts, 3))
+    out[dofs.ravel()] = msh.geometry.x[geo.ravel()]
+    return out
+
+
 def sorted_node_order(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Permutation that sorts nodes by ``(y, x)`` (rows of a structured grid, then columns).
 
@@ -135,7 +164,7 @@ def gather_nodal(
     """
     comm = V.mesh.comm
     n_owned = V.dofmap.index_map.size_local
-    coords = V.tabulate_dof_coordinates()[:n_owned]
+    coords = node_coordinates(V)[:n_owned]
     local: dict[str, np.ndarray] = {"x": coords[:, 0], "y": coords[:, 1]}
     for name, values in arrays.items():
         if name in local:
