@@ -74,7 +74,7 @@ def locate(solver, depth: float) -> str:
     local = (float(bad.max()), None) if bad.size else (-np.inf, None)
     if bad.size:
         k = int(np.argmax(bad))
-        from fem_runout.output.gather import node_coordinates
+        from fem_runout.mesh import node_coordinates
 
         xy = node_coordinates(solver.V)[np.arange(h.size)[k] if isinstance(idx, slice)
                                         else idx[k]]

@@ -350,3 +350,32 @@ def rectangle_facets(disc: Discretization) -> tuple[np.ndarray, np.ndarray, dict
     where = {"left": (0, xmin), "right": (0, xmax), "bottom": (1, ymin), "top": (1, ymax)}
     return facets, mid, {name: np.abs(mid[:, axis] - value) < tol
                          for name, (axis, value) in where.items()}
+
+
+def node_coordinates(V: fem.FunctionSpace) -> np.ndarray:
+    """Coordinates of the local nodes (owned, then ghosts) of a degree-1 Lagrange space.
+
+    Taken from the mesh geometry, so they are the mesh's own numbers, bit for bit.
+    ``tabulate_dof_coordinates`` pushes the reference points forward through each cell's
+    map instead, which leaves a last-bit error that depends on the cell a rank holds and on
+    the CPU's floating-point kernels (x = 50 came out as 50.000000000000007 on an AVX-512
+    machine, and below 50 on the one where the tests were written).
+
+    Args:
+        V: A Q1 space (scalar or blocked) on a mesh with Q1 geometry.
+
+    Returns:
+        (n_local, 3) coordinates; row ``i`` belongs to local node ``i``.
+    """
+    msh = V.mesh
+    tdim = msh.topology.dim
+    cells = msh.topology.index_map(tdim)
+    n_cells = cells.size_local + cells.num_ghosts
+    dofs = np.asarray(V.dofmap.list[:n_cells])
+    geo = np.asarray(msh.geometry.dofmaps[0][:n_cells])
+    if dofs.shape != geo.shape:
+        raise ValueError("node_coordinates needs the mesh's own degree (Q1 on Q1 geometry)")
+    imap = V.dofmap.index_map
+    out = np.empty((imap.size_local + imap.num_ghosts, 3))
+    out[dofs.ravel()] = msh.geometry.x[geo.ravel()]
+    return out

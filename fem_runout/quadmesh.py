@@ -22,7 +22,13 @@ import numpy as np
 from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
-from fem_runout.mesh import Discretization, Side, cell_integrals, rectangle_facets
+from fem_runout.mesh import (
+    Discretization,
+    Side,
+    cell_integrals,
+    node_coordinates,
+    rectangle_facets,
+)
 
 __all__ = ["EDGE_CORNERS", "Edges", "cell_slots", "discretization_from_mesh",
            "gmsh_discretization", "rectangle_edges"]
@@ -129,8 +135,7 @@ def discretization_from_mesh(comm: MPI.Comm, msh: mesh.Mesh, facet_kind: np.ndar
     cmap, imap = msh.topology.index_map(tdim), V.dofmap.index_map
     n_cells = cmap.size_local + cmap.num_ghosts
     cell_nodes = np.asarray(V.dofmap.list[:n_cells], dtype=np.int64)
-    coords = np.empty((imap.size_local + imap.num_ghosts, 2))
-    coords[cell_nodes] = msh.geometry.x[np.asarray(msh.geometry.dofmaps[0][:n_cells]), :2]
+    coords = node_coordinates(V)[:, :2].copy()
     C, phi_int, area = cell_integrals(coords[cell_nodes])
     if np.any(area <= 0.0):
         raise ValueError("the mesh has cells of zero area")

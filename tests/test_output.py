@@ -70,7 +70,7 @@ def test_gather_nodal_sorted_by_y_then_x():
 
 def test_gathered_coordinates_are_the_meshs_own_numbers():
     """x = 50 on a 2.5 m grid is 50 exactly, not the last-bit push-forward of the tabulation."""
-    from fem_runout.output.gather import node_coordinates
+    from fem_runout.mesh import node_coordinates
 
     s = fake_solver(MPI.COMM_WORLD, {k: (lambda x, y: 0 * x) for k in ("h", "hu", "hv", "z")},
                     (40, 2), (100.0, 2.0))

@@ -44,9 +44,9 @@ KEYS = (("runout_length", "run-out [m]", 1.0, "{:.1f}"),
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the command's options."""
-    parser.add_argument("--members", type=int, default=4, help="draws per mesh (default 4)")
     from fem_runout.methods import default_method
 
+    parser.add_argument("--members", type=int, default=4, help="draws per mesh (default 4)")
     parser.add_argument("--methods", nargs="+", default=[default_method()])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "meshes.md")
 

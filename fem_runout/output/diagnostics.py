@@ -14,8 +14,9 @@ import numpy as np
 from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
+from fem_runout.mesh import node_coordinates
 from fem_runout.output.envelopes import fold_envelopes
-from fem_runout.output.gather import gather_nodal, node_coordinates
+from fem_runout.output.gather import gather_nodal
 
 if TYPE_CHECKING:
     from fem_runout.callbacks import StepInfo

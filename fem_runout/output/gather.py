@@ -9,9 +9,11 @@ from mpi4py import MPI  # before dolfinx
 import numpy as np
 from dolfinx import fem
 
+from fem_runout.mesh import node_coordinates
+
 __all__ = [
     "exact_global_sum", "gather_nodal", "global_max", "global_min", "global_sum",
-    "node_coordinates", "sorted_node_order",
+    "sorted_node_order",
 ]
 
 # Coordinates are rounded to this fraction of the domain extent before sorting, so that
@@ -74,35 +76,6 @@ def global_min(comm: MPI.Comm, value: float) -> float:
         The global minimum, the same on every rank.
     """
     return float(comm.allreduce(float(value), op=MPI.MIN))
-
-
-def node_coordinates(V: fem.FunctionSpace) -> np.ndarray:
-    """Coordinates of the local nodes (owned, then ghosts) of a degree-1 Lagrange space.
-
-    Taken from the mesh geometry, so they are the mesh's own numbers, bit for bit.
-    ``tabulate_dof_coordinates`` pushes the reference points forward through each cell's
-    map instead, which leaves a last-bit error that depends on the cell a rank holds and on
-    the CPU's floating-point kernels (x = 50 came out as 50.000000000000007 on one machine and
-    49.999999999999993 on another).
-
-    Args:
-        V: A Q1 space (scalar or blocked) on a mesh with Q1 geometry.
-
-    Returns:
-        (n_local, 3) coordinates; row ``i`` belongs to local node ``i``.
-    """
-    msh = V.mesh
-    tdim = msh.topology.dim
-    cells = msh.topology.index_map(tdim)
-    n_cells = cells.size_local + cells.num_ghosts
-    dofs = np.asarray(V.dofmap.list[:n_cells])
-    geo = np.asarray(msh.geometry.dofmaps[0][:n_cells])
-    if dofs.shape != geo.shape:
-        raise ValueError("node_coordinates needs the mesh's own degree (Q1 on Q1 geometry)")
-    imap = V.dofmap.index_map
-    out = np.empty((imap.size_local + imap.num_ghosts, 3))
-    out[dofs.ravel()] = msh.geometry.x[geo.ravel()]
-    return out
 
 
 def sorted_node_order(x: np.ndarray, y: np.ndarray) -> np.ndarray:
