@@ -7,8 +7,10 @@ NP ?= 2
 export NUMBA_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 export OPENBLAS_NUM_THREADS := 1
-SERIAL_TIMEOUT ?= 900
-MPI_TIMEOUT ?= 900
+# the serial tests run in WORKERS pytest-xdist processes (one per core), a file per worker
+WORKERS ?= 2
+SERIAL_TIMEOUT ?= 1800
+MPI_TIMEOUT ?= 1200
 DEMO_CASE ?= cases/inclined_dam_break.yaml
 # rank independence on 3 ranks too (mpich runs 3 on 2 cores): dam breaks on and off the cuts,
 # the TG2/DAMPM rank comparisons and the hard cases
@@ -35,7 +37,8 @@ demo: setup
 test: setup
 	@status=0; \
 	$(VENV)/bin/ruff check fem_runout mpm tests peers || status=1; \
-	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x tests --ignore=tests/mpi || status=1; \
+	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x -n $(WORKERS) --dist loadfile tests \
+		--ignore=tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n 3 $(PY) -m pytest -q -x $(RANK3_TESTS) || status=1; \
 	exit $$status
