@@ -16,6 +16,7 @@ from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
 from fem_runout import cellsum
+from fem_runout.q1 import jacobians, q1_basis
 from fem_runout.shared_nodes import SharedRows, sharing_ranks
 
 SIDES = ("left", "right", "bottom", "top")
@@ -231,10 +232,8 @@ def physical_basis(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         weights ``w_q |det J|`` (basix's degree-4 rule).
     """
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
-    el = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    tab = el.tabulate(1, pts)  # (3, nq, 4, 1)
-    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
-    J = np.einsum("cka,qkb->cqab", xc, dphi)  # dx_a / dX_b
+    phi, dphi = q1_basis(pts)  # closed form: basix's tabulation depends on the CPU's BLAS
+    J = jacobians(xc, dphi)  # dx_a / dX_b
     detJ = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     Jinv = np.empty_like(J)
     Jinv[..., 0, 0], Jinv[..., 1, 1] = J[..., 1, 1] / detJ, J[..., 0, 0] / detJ
@@ -262,10 +261,8 @@ def element_masses(cells: np.ndarray, coords: np.ndarray) -> np.ndarray:
     exact for a bilinear map (``det J`` affine). The matrices are exactly symmetric.
     """
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
-    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    tab = element.tabulate(1, pts)  # (3, nq, 4, 1)
-    phi, dphi = tab[0, :, :, 0], np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)
-    jac = np.einsum("cka,qkb->cqab", coords[cells], dphi)
+    phi, dphi = q1_basis(pts)
+    jac = jacobians(coords[cells], dphi)
     det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
     mass = np.einsum("cq,qi,qj->cij", wts[None, :] * np.abs(det), phi, phi)
     return 0.5 * (mass + mass.transpose(0, 2, 1))

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from fem_runout.q1 import jacobians, q1_basis
 from fem_runout.tg2.low_order import BANK_SLOPE
 
 __all__ = ["corrector_cells"]
@@ -110,14 +111,10 @@ def edge_dzdn(z: np.ndarray, coords: np.ndarray, cell_nodes: np.ndarray,
     Returns:
         (n_cells, 4).
     """
-    import basix
-
     mids = np.array([[0.5, 0.0], [0.0, 0.5], [1.0, 0.5], [0.5, 1.0]])  # edges 0..3
-    el = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1)
-    tab = el.tabulate(1, mids)
-    dphi = np.stack([tab[1, :, :, 0], tab[2, :, :, 0]], axis=-1)  # (edge, node, ref dir)
+    _, dphi = q1_basis(mids)  # (edge, node, ref dir)
     xc, zc = coords[cell_nodes], z[cell_nodes]
-    J = np.einsum("cka,ekb->ceab", xc, dphi)  # dx_a / dX_b per cell and edge
+    J = jacobians(xc, dphi)  # dx_a / dX_b per cell and edge
     dz = np.einsum("ck,ekb->ceb", zc, dphi)  # dZ / dX_b
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     gx = (J[..., 1, 1] * dz[..., 0] - J[..., 1, 0] * dz[..., 1]) / det
