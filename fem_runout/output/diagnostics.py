@@ -6,7 +6,7 @@ import csv
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mpi4py import MPI  # noqa: F401 - before dolfinx
+from mpi4py import MPI  # before dolfinx
 
 # isort: split
 
@@ -14,6 +14,7 @@ import numpy as np
 from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
+from fem_runout.exact_sum import fold_extractors
 from fem_runout.mesh import node_coordinates
 from fem_runout.output.envelopes import fold_envelopes
 from fem_runout.output.gather import gather_nodal
@@ -73,12 +74,22 @@ def owned_x(solver: Solver) -> np.ndarray:
     return node_coordinates(solver.V)[:n, 0].copy()
 
 
-def _rank_order_sum(rows: np.ndarray) -> np.ndarray:
-    """``((r_0 + r_1) + r_2) + ...`` of the rows: the same order on every rank."""
-    total = rows[0].copy()
-    for row in rows[1:]:
-        total += row
-    return total
+def _exact_sums(terms: tuple[np.ndarray, ...], bounds: np.ndarray, n_terms: int,
+                comm: MPI.Comm) -> np.ndarray:
+    """``Σ terms[k]`` over the ranks, the same bits on any rank count and CPU (one reduction).
+
+    Each term is split into two pre-rounded folds (:func:`fem_runout.exact_sum.fold_extractors`
+    with ``bounds``, the largest ``|term|`` over the ranks): their partial sums are exact in
+    any order, so neither the partition nor numpy's or BLAS's summation order shows.
+    """
+    ext = fold_extractors(bounds, n_terms)
+    folds = np.zeros(2 * len(terms))
+    for k, t in enumerate(terms):
+        hi = (t + ext[k, 0]) - ext[k, 0]
+        lo = ((t - hi) + ext[k, 1]) - ext[k, 1]
+        folds[2 * k], folds[2 * k + 1] = hi.sum(), lo.sum()
+    comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
+    return folds[0::2] + folds[1::2]
 
 
 def compute_diagnostics(solver: Solver, threshold: float, density: float,
@@ -96,28 +107,24 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         over wet nodes), ``max_depth`` [m], ``max_speed`` [m/s] (over wet nodes, 0 if none),
         ``wet_area`` [m^2], ``front_x`` [m] (largest x of a wet node, nan if none) and
         ``outflow`` [m^3] (``solver.outflow_volume``), ``dried`` [m^3]
-        (``solver.dried_volume``). The same on every rank.
+        (``solver.dried_volume``). The same bits on every rank, any rank count and any CPU
+        (the sums are exact-fold sums, :func:`_exact_sums`).
     """
     comm = solver.comm
     x, m, h, hu, hv = _owned(solver, x)
     wet = h > threshold
     q2 = hu[wet] ** 2 + hv[wet] ** 2
-    local_sums = np.array(
-        [m @ h, 0.5 * density * np.sum(m[wet] * q2 / h[wet]), np.sum(m[wet])], dtype=np.float64
-    )
+    terms = (m * h, 0.5 * density * (m[wet] * q2 / h[wet]), m[wet])
     speed = np.sqrt(q2) / h[wet]
-    local_max = np.array(
-        [
-            max(h.max(initial=0.0), 0.0) if solver.V.dofmap.index_map.size_local else -np.inf,
-            speed.max() if speed.size else 0.0,
-            x[wet].max() if speed.size else -np.inf,
-        ],
-        dtype=np.float64,
-    )
-    # one exchange for both: every rank's sums and maxima, added in rank order
-    every = np.empty((comm.size, 6))
-    comm.Allgather(np.concatenate([local_sums, local_max]), every)
-    sums, maxima = _rank_order_sum(every[:, :3]), every[:, 3:].max(axis=0)
+    local_max = np.array([
+        *(np.abs(t).max(initial=0.0) for t in terms),
+        max(h.max(initial=0.0), 0.0) if solver.V.dofmap.index_map.size_local else -np.inf,
+        speed.max() if speed.size else 0.0,
+        x[wet].max() if speed.size else -np.inf,
+    ], dtype=np.float64)
+    comm.Allreduce(MPI.IN_PLACE, local_max, op=MPI.MAX)
+    sums = _exact_sums(terms, local_max[:3], solver.V.dofmap.index_map.size_global, comm)
+    maxima = local_max[3:]
     return {
         "volume": float(sums[0]),
         "kinetic_energy": float(sums[1]),
