@@ -16,7 +16,7 @@ from dolfinx import fem, la, mesh
 from mpi4py import MPI
 
 from fem_runout import cellsum
-from fem_runout.q1 import jacobians, q1_basis
+from fem_runout.q1 import inverses, jacobians, q1_basis
 from fem_runout.shared_nodes import SharedRows, sharing_ranks
 
 SIDES = ("left", "right", "bottom", "top")
@@ -233,11 +233,7 @@ def physical_basis(xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 4)
     phi, dphi = q1_basis(pts)  # closed form: basix's tabulation depends on the CPU's BLAS
-    J = jacobians(xc, dphi)  # dx_a / dX_b
-    detJ = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-    Jinv = np.empty_like(J)
-    Jinv[..., 0, 0], Jinv[..., 1, 1] = J[..., 1, 1] / detJ, J[..., 0, 0] / detJ
-    Jinv[..., 0, 1], Jinv[..., 1, 0] = -J[..., 0, 1] / detJ, -J[..., 1, 0] / detJ
+    Jinv, detJ = inverses(jacobians(xc, dphi))  # of dx_a / dX_b
     grad = np.einsum("qkb,cqba->cqka", dphi, Jinv)  # physical gradients
     return phi, grad, wts[None, :] * np.abs(detJ)
 

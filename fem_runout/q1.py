@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["jacobians", "q1_basis"]
+__all__ = ["inverses", "jacobians", "q1_basis"]
 
 
 def q1_basis(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -41,3 +41,15 @@ def jacobians(xc: np.ndarray, dphi: np.ndarray) -> np.ndarray:
     """
     rel = xc - xc[:, :1, :]
     return np.einsum("cka,qkb->cqab", rel, dphi)
+
+
+def inverses(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverses and determinants of 2×2 matrices ``(..., 2, 2)`` by the adjugate.
+
+    No LAPACK (``np.linalg.inv`` goes through the CPU's BLAS kernels): the same bits anywhere.
+    """
+    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    inv = np.empty_like(J)
+    inv[..., 0, 0], inv[..., 1, 1] = J[..., 1, 1] / det, J[..., 0, 0] / det
+    inv[..., 0, 1], inv[..., 1, 0] = -J[..., 0, 1] / det, -J[..., 1, 0] / det
+    return inv, det

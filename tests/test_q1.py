@@ -13,7 +13,7 @@ import sys
 import basix
 import numpy as np
 
-from fem_runout.q1 import jacobians, q1_basis
+from fem_runout.q1 import inverses, jacobians, q1_basis
 
 SCRIPT = """
 import hashlib, numpy as np
@@ -73,3 +73,14 @@ def test_cell_integrals_have_the_same_bits_with_any_blas_kernels():
         digests.add(out.stdout.split()[-1])
     assert len(digests) == 1, digests
     assert len(next(iter(digests))) == len(hashlib.sha256().hexdigest())
+
+
+def test_inverses_by_the_adjugate():
+    """``J⁻¹ J = I`` to round-off and ``det J`` for a batch of bilinear maps' Jacobians."""
+    rng = np.random.default_rng(3)
+    J = rng.uniform(0.5, 2.0, (50, 3, 2, 2))
+    J[..., 0, 1] *= 0.3
+    J[..., 1, 0] *= -0.3
+    inv, det = inverses(J)
+    assert np.abs(np.einsum("...ab,...bc->...ac", inv, J) - np.eye(2)).max() <= 1e-14
+    assert np.array_equal(det, J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])

@@ -39,7 +39,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import BedFrame, SlopeGeometry
-from fem_runout.q1 import jacobians, q1_basis
+from fem_runout.q1 import inverses, jacobians, q1_basis
 from fem_runout.tg2.low_order import velocity_factor
 
 
@@ -193,25 +193,16 @@ class DiffusionReaction:
 def _center_gradients(xc: np.ndarray) -> np.ndarray:
     """Physical gradients of the four Q1 basis functions at each cell's centre, (n, 4, 2)."""
     _, dphi = q1_basis(np.array([[0.5, 0.5]]))  # (1, 4, 2) reference
-    Jinv = _inverses(jacobians(xc, dphi))[:, 0]
+    Jinv = inverses(jacobians(xc, dphi))[0][:, 0]
     return np.einsum("kb,cba->cka", dphi[0], Jinv)
-
-
-def _inverses(J: np.ndarray) -> np.ndarray:
-    """Inverses of 2×2 matrices ``(..., 2, 2)`` by the adjugate (no LAPACK: CPU-independent)."""
-    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-    inv = np.empty_like(J)
-    inv[..., 0, 0], inv[..., 1, 1] = J[..., 1, 1] / det, J[..., 0, 0] / det
-    inv[..., 0, 1], inv[..., 1, 0] = -J[..., 0, 1] / det, -J[..., 1, 0] / det
-    return inv
 
 
 def _stiffness_row_sums(xc: np.ndarray) -> np.ndarray:
     """``Σ_j |∫_K ∇φ_i·∇φ_j|`` per cell and node (exact 2×2 Gauss), (n, 4)."""
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 2)
     _, dphi = q1_basis(pts)  # (q, 4, 2)
-    J = jacobians(xc, dphi)
-    grad = np.einsum("qkb,cqba->cqka", dphi, _inverses(J))
-    w = wts[None, :] * np.abs(J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])
+    Jinv, det = inverses(jacobians(xc, dphi))
+    grad = np.einsum("qkb,cqba->cqka", dphi, Jinv)
+    w = wts[None, :] * np.abs(det)
     S = np.einsum("cq,cqia,cqja->cij", w, grad, grad)
     return np.abs(S).sum(axis=2)
