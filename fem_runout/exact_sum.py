@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["exact_total", "extractors", "fold_extractors"]
+__all__ = ["exact_total", "exact_totals", "extractors", "fold_extractors"]
 
 
 def extractors(bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> np.ndarray:
@@ -64,10 +64,27 @@ def exact_total(values: np.ndarray, bound: float, n_terms: int, comm: MPI.Comm) 
         n_terms: A bound of the number of terms over all ranks.
         comm: Communicator.
     """
-    ext = fold_extractors(np.array([bound]), n_terms)[0]
-    x = np.asarray(values, dtype=np.float64)
-    hi = (x + ext[0]) - ext[0]
-    lo = ((x - hi) + ext[1]) - ext[1]
-    folds = np.array([hi.sum(), lo.sum()])  # every partial sum exact: any order
+    return float(exact_totals([values], np.array([bound]), n_terms, comm)[0])
+
+
+def exact_totals(columns, bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> np.ndarray:
+    """:func:`exact_total` of several columns of terms in one sum reduction (collective).
+
+    Args:
+        columns: This rank's terms, one array per total.
+        bounds: A bound of ``|x|`` per column over every rank's terms (the same on every rank).
+        n_terms: A bound of the number of terms of any column over all ranks.
+        comm: Communicator.
+
+    Returns:
+        The totals, one per column.
+    """
+    ext = fold_extractors(bounds, n_terms)
+    folds = np.empty(2 * len(columns))
+    for k, values in enumerate(columns):
+        x = np.asarray(values, dtype=np.float64)
+        hi = (x + ext[k, 0]) - ext[k, 0]
+        lo = ((x - hi) + ext[k, 1]) - ext[k, 1]
+        folds[2 * k], folds[2 * k + 1] = hi.sum(), lo.sum()  # every partial sum exact
     comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
-    return float(folds[0] + folds[1])
+    return folds[0::2] + folds[1::2]

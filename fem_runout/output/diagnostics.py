@@ -14,7 +14,7 @@ import numpy as np
 from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
-from fem_runout.exact_sum import fold_extractors
+from fem_runout.exact_sum import exact_totals
 from fem_runout.mesh import node_coordinates
 from fem_runout.output.envelopes import fold_envelopes
 from fem_runout.output.gather import gather_nodal
@@ -74,24 +74,6 @@ def owned_x(solver: Solver) -> np.ndarray:
     return node_coordinates(solver.V)[:n, 0].copy()
 
 
-def _exact_sums(terms: tuple[np.ndarray, ...], bounds: np.ndarray, n_terms: int,
-                comm: MPI.Comm) -> np.ndarray:
-    """``Σ terms[k]`` over the ranks, the same bits on any rank count and CPU (one reduction).
-
-    Each term is split into two pre-rounded folds (:func:`fem_runout.exact_sum.fold_extractors`
-    with ``bounds``, the largest ``|term|`` over the ranks): their partial sums are exact in
-    any order, so neither the partition nor numpy's or BLAS's summation order shows.
-    """
-    ext = fold_extractors(bounds, n_terms)
-    folds = np.zeros(2 * len(terms))
-    for k, t in enumerate(terms):
-        hi = (t + ext[k, 0]) - ext[k, 0]
-        lo = ((t - hi) + ext[k, 1]) - ext[k, 1]
-        folds[2 * k], folds[2 * k + 1] = hi.sum(), lo.sum()
-    comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
-    return folds[0::2] + folds[1::2]
-
-
 def compute_diagnostics(solver: Solver, threshold: float, density: float,
                         x: np.ndarray | None = None) -> dict[str, float]:
     """Global diagnostics of the current state (collective; owned dofs only).
@@ -108,7 +90,7 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         ``wet_area`` [m^2], ``front_x`` [m] (largest x of a wet node, nan if none) and
         ``outflow`` [m^3] (``solver.outflow_volume``), ``dried`` [m^3]
         (``solver.dried_volume``). The same bits on every rank, any rank count and any CPU
-        (the sums are exact-fold sums, :func:`_exact_sums`).
+        (the sums are exact-fold sums, :func:`fem_runout.exact_sum.exact_totals`).
     """
     comm = solver.comm
     x, m, h, hu, hv = _owned(solver, x)
@@ -123,7 +105,7 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         x[wet].max() if speed.size else -np.inf,
     ], dtype=np.float64)
     comm.Allreduce(MPI.IN_PLACE, local_max, op=MPI.MAX)
-    sums = _exact_sums(terms, local_max[:3], solver.V.dofmap.index_map.size_global, comm)
+    sums = exact_totals(terms, local_max[:3], solver.V.dofmap.index_map.size_global, comm)
     maxima = local_max[3:]
     return {
         "volume": float(sums[0]),
