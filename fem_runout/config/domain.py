@@ -54,6 +54,10 @@ REFINE_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 TERRAIN_TOLERANCE = 0.25  # default of ``refine[].tolerance`` [m]
 _RECTANGLE_KEYS = ("extent", "window", "cells")
+# the keys only an outline takes
+_OUTLINE_KEYS = ("min_size", "refine", "smoothing")
+#: Default ``smoothing`` of an outline mesh (passes; docs/meshes.md, "The mesh's smoothing").
+SMOOTHING_PASSES = 20
 
 
 class BoundarySides(StrictSpec):
@@ -198,6 +202,8 @@ class DomainSpec(StrictSpec):
         mesh: gmsh ``.msh`` file of first-order quadrilaterals (file only).
         min_size: Smallest cell size of an outline mesh [m] (default ``cell_size / 4``).
         refine: Size fields of an outline mesh (:class:`RefineSpec`).
+        smoothing: Size-equalising passes over an outline mesh's interior nodes
+            (:mod:`fem_runout.meshing.smoothing`; default 20, 0: gmsh's mesh as it is).
     """
 
     extent: Annotated[Box | None, BeforeValidator(parse_window)] = None
@@ -209,6 +215,7 @@ class DomainSpec(StrictSpec):
     mesh: FilePath | None = None
     min_size: Real | None = Field(None, gt=0)
     refine: Annotated[tuple[RefineSpec, ...] | None, BeforeValidator(_refine)] = None
+    smoothing: int | None = Field(None, ge=0, le=200)
 
     @model_validator(mode="before")
     @classmethod
@@ -220,13 +227,12 @@ class DomainSpec(StrictSpec):
         if len(given) == 2:
             raise SpecError("give either outline or mesh, not both", "mesh")
         if not given:
-            for key in ("min_size", "refine"):
+            for key in _OUTLINE_KEYS:
                 if data.get(key) is not None:
                     raise SpecError("only used with domain.outline", key)
             return data
         kind = given[0]
-        others = (*_RECTANGLE_KEYS, *(("cell_size", "min_size", "refine") if kind == "mesh"
-                                      else ()))
+        others = (*_RECTANGLE_KEYS, *(("cell_size", *_OUTLINE_KEYS) if kind == "mesh" else ()))
         for key in others:
             if data.get(key) is not None:
                 raise SpecError(f"not used with domain.{kind} (the {kind} sets the domain)", key)
@@ -236,6 +242,8 @@ class DomainSpec(StrictSpec):
         size = data.get("cell_size")
         if kind == "outline" and data.get("min_size") is None and is_number(size) and size > 0:
             data = {**data, "min_size": size / 4}
+        if kind == "outline" and data.get("smoothing") is None:
+            data = {**data, "smoothing": SMOOTHING_PASSES}
         return data
 
     @model_validator(mode="after")

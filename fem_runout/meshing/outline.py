@@ -22,6 +22,7 @@ from fem_runout.errors import CaseError
 from fem_runout.meshing.fields import add_size_fields
 from fem_runout.meshing.quadmesh import QuadMesh, finish_mesh, mesh_quality
 from fem_runout.meshing.shapes import case_line, case_outline
+from fem_runout.meshing.smoothing import equalize_sizes
 
 if TYPE_CHECKING:
     from fem_runout.config import Case
@@ -152,13 +153,24 @@ def _attempt(surface: int, poly: Any, attempt: tuple[int, dict[str, float]],
     return mesh
 
 
+def _smoothed(mesh: QuadMesh, poly: Any, passes: int) -> QuadMesh:
+    """``mesh`` after ``passes`` size-equalising passes (:mod:`fem_runout.meshing.smoothing`)."""
+    if passes == 0:
+        return mesh
+    nodes = equalize_sizes(mesh.nodes, mesh.quads, passes)
+    out = QuadMesh(nodes, mesh.quads, mesh.groups)
+    _check_cover(out, poly)
+    return out
+
+
 def mesh_outline(case: Case) -> QuadMesh:
     """Mesh ``domain.outline`` with quadrilaterals graded by ``domain.refine``.
 
     The 2D algorithms of :data:`ALGORITHMS` are tried in turn until one gives a valid mesh
-    (convex quadrilaterals covering the outline exactly once). gmsh must be initialized
-    (:func:`fem_runout.meshing.gmsh_session`); the helper model and views are removed
-    afterwards, the current model is left unchanged.
+    (convex quadrilaterals covering the outline exactly once); its interior nodes are then
+    moved by ``domain.smoothing`` size-equalising passes (:mod:`fem_runout.meshing.smoothing`).
+    gmsh must be initialized (:func:`fem_runout.meshing.gmsh_session`); the helper model and
+    views are removed afterwards, the current model is left unchanged.
 
     Raises:
         CaseError: If no algorithm gives a valid quadrilateral mesh.
@@ -180,9 +192,11 @@ def mesh_outline(case: Case) -> QuadMesh:
         error = CaseError("domain.outline: not meshed")
         for attempt in ALGORITHMS:
             try:
-                return _attempt(surface, poly, attempt, d.default_boundary)
+                mesh = _attempt(surface, poly, attempt, d.default_boundary)
             except CaseError as exc:
                 error = exc
+                continue
+            return _smoothed(mesh, poly, d.smoothing or 0)
         raise error
     finally:
         for view in views:
