@@ -10,7 +10,8 @@ import pytest
 from fem_runout.config import load_case
 from fem_runout.errors import CaseError
 from fem_runout.meshing import case_mesh, gmsh_session, mesh_quality
-from fem_runout.meshing.smoothing import equalize_sizes, quad_areas
+from fem_runout.meshing.quadmesh import quad_areas
+from fem_runout.meshing.smoothing import equalize_sizes
 from tests.mesh_helpers import LINE, outline_case
 
 pytest.importorskip("gmsh")

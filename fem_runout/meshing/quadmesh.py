@@ -21,8 +21,10 @@ __all__ = [
     "DOMAIN_TAG",
     "GROUPS",
     "QuadMesh",
+    "corner_sines",
     "finish_mesh",
     "mesh_quality",
+    "quad_areas",
     "read_model",
     "to_gmsh",
 ]
@@ -49,7 +51,7 @@ class QuadMesh:
     groups: dict[str, np.ndarray]
 
 
-def _corner_sines(points: np.ndarray) -> np.ndarray:
+def corner_sines(points: np.ndarray) -> np.ndarray:
     """``sin`` of every corner angle of ``(M, 4, 2)`` quads, signed (> 0: counterclockwise)."""
     a = np.roll(points, -1, axis=1) - points
     b = np.roll(points, 1, axis=1) - points
@@ -58,9 +60,16 @@ def _corner_sines(points: np.ndarray) -> np.ndarray:
     return cross / np.where(norm > 0, norm, 1.0) * (norm > 0)
 
 
+def quad_areas(nodes: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Signed areas of ``(M, 4)`` quadrilaterals (positive counterclockwise)."""
+    p = np.asarray(nodes)[np.asarray(quads)]
+    x, y = p[..., 0], p[..., 1]
+    return 0.5 * (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
+
+
 def _orient(nodes: np.ndarray, quads: np.ndarray, key: str) -> np.ndarray:
     """Make every quad counterclockwise; refuse non-convex or degenerate ones."""
-    sines = _corner_sines(nodes[quads])
+    sines = corner_sines(nodes[quads])
     clockwise = (sines < -_MIN_SINE).all(axis=1)
     quads = np.where(clockwise[:, None], quads[:, [0, 3, 2, 1]], quads)
     bad = ~(clockwise | (sines > _MIN_SINE).all(axis=1))
@@ -187,14 +196,13 @@ def mesh_quality(nodes: np.ndarray | None = None, quads: np.ndarray | None = Non
     a, b = np.roll(p, -1, axis=1) - p, np.roll(p, 1, axis=1) - p
     cos = (a * b).sum(axis=2) / (np.linalg.norm(a, axis=2) * np.linalg.norm(b, axis=2))
     angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-    x, y = p[..., 0], p[..., 1]
-    area = 0.5 * (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
+    area = quad_areas(nodes, quads)
     return {
         "cells": len(p), "nodes": len(nodes), "area": float(np.abs(area).sum()),
         "min_edge": float(edge.min()), "mean_edge": float(edge.mean()),
         "max_edge": float(edge.max()), "min_angle": float(angle.min()),
         "max_angle": float(angle.max()),
-        "min_scaled_jacobian": float(_corner_sines(p).min()),
+        "min_scaled_jacobian": float(corner_sines(p).min()),
     }
 
 

@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["equalize_sizes", "quad_areas"]
+from fem_runout.meshing.quadmesh import corner_sines, quad_areas
+
+__all__ = ["equalize_sizes"]
 
 #: Passes averaging the initial areas into the targets (each over the cells at a node): wide
 #: enough that a defect's own deficit hardly lowers its target (2 rings kept a third of the
@@ -31,23 +33,6 @@ __all__ = ["equalize_sizes", "quad_areas"]
 TARGET_RINGS = 8
 #: Smallest corner sine a pass may make (30 or 150 deg), or the input's smallest if lower.
 SINE_FLOOR = 0.5
-
-
-def quad_areas(nodes: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """Signed areas of ``(M, 4)`` quadrilaterals (positive counterclockwise)."""
-    p = nodes[quads]
-    x, y = p[..., 0], p[..., 1]
-    return 0.5 * (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
-
-
-def _min_sines(nodes: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """Smallest signed corner sine of every quadrilateral (<= 0: not convex)."""
-    p = nodes[quads]
-    a = np.roll(p, -1, axis=1) - p
-    b = np.roll(p, 1, axis=1) - p
-    cross = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    norm = np.linalg.norm(a, axis=2) * np.linalg.norm(b, axis=2)
-    return (cross / np.where(norm > 0.0, norm, 1.0) * (norm > 0.0)).min(axis=1)
 
 
 def _node_mean(quads: np.ndarray, values: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -92,7 +77,7 @@ def _one_pass(nodes: np.ndarray, quads: np.ndarray, target: np.ndarray, fixed: n
     move = ~fixed & (den > 0.0)
     new[move] = num[move] / den[move, None]
     while True:  # put back the nodes of cells that would get a sharper corner than allowed
-        bad = _min_sines(new, quads) < floor
+        bad = corner_sines(new[quads]).min(axis=1) < floor
         if not bad.any():
             return new
         back = np.zeros(len(nodes), dtype=bool)
@@ -121,7 +106,7 @@ def equalize_sizes(nodes: np.ndarray, quads: np.ndarray, passes: int) -> np.ndar
     quads = np.asarray(quads, dtype=np.int64)
     target = _targets(nodes, quads)
     fixed = _boundary_nodes(quads, len(nodes))
-    floor = min(SINE_FLOOR, float(_min_sines(nodes, quads).min()))
+    floor = min(SINE_FLOOR, float(corner_sines(nodes[quads]).min()))
     for _ in range(passes):
         nodes = _one_pass(nodes, quads, target, fixed, floor)
     return nodes
