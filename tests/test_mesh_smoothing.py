@@ -56,7 +56,7 @@ def test_smoothing_grows_the_smallest_cells_of_a_uniform_mesh() -> None:
     q0, q1 = mesh_quality(raw.nodes, raw.quads), mesh_quality(smooth.nodes, smooth.quads)
     assert abs(q1["area"] - q0["area"]) <= 1e-12 * q0["area"]
     assert q1["min_scaled_jacobian"] >= min(0.5, q0["min_scaled_jacobian"]) - 1e-12
-    bnd = np.unique(np.concatenate([e.ravel() for e in raw.groups.values()]))
+    bnd = raw.boundary_nodes()
     assert np.array_equal(raw.nodes[bnd], smooth.nodes[bnd])
     for name, edges in raw.groups.items():
         assert np.array_equal(edges, smooth.groups[name])
@@ -83,10 +83,11 @@ def test_smoothing_is_deterministic_and_zero_passes_change_nothing() -> None:
     case = load_case(outline_case(cell_size=8.0, smoothing=0))
     with gmsh_session():
         raw = case_mesh(case)
-    a = equalize_sizes(raw.nodes, raw.quads, 5)
-    b = equalize_sizes(raw.nodes, raw.quads, 5)
+    fixed = raw.boundary_nodes()
+    a = equalize_sizes(raw.nodes, raw.quads, fixed, 5)
+    b = equalize_sizes(raw.nodes, raw.quads, fixed, 5)
     assert np.array_equal(a, b) and not np.array_equal(a, raw.nodes)
-    assert np.array_equal(equalize_sizes(raw.nodes, raw.quads, 0), raw.nodes)
+    assert np.array_equal(equalize_sizes(raw.nodes, raw.quads, fixed, 0), raw.nodes)
 
 
 def test_smoothing_default_and_bad_values() -> None:

@@ -157,7 +157,7 @@ def _smoothed(mesh: QuadMesh, poly: Any, passes: int) -> QuadMesh:
     """``mesh`` after ``passes`` size-equalising passes (:mod:`fem_runout.meshing.smoothing`)."""
     if passes == 0:
         return mesh
-    nodes = equalize_sizes(mesh.nodes, mesh.quads, passes)
+    nodes = equalize_sizes(mesh.nodes, mesh.quads, mesh.boundary_nodes(), passes)
     out = QuadMesh(nodes, mesh.quads, mesh.groups)
     _check_cover(out, poly)
     return out

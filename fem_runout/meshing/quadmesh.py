@@ -50,6 +50,11 @@ class QuadMesh:
     quads: np.ndarray
     groups: dict[str, np.ndarray]
 
+    def boundary_nodes(self) -> np.ndarray:
+        """Sorted indices of the nodes on the boundary (those of the groups' edges)."""
+        return np.unique(np.concatenate([np.asarray(e, dtype=np.int64).ravel()
+                                         for e in self.groups.values()]))
+
 
 def corner_sines(points: np.ndarray) -> np.ndarray:
     """``sin`` of every corner angle of ``(M, 4, 2)`` quads, signed (> 0: counterclockwise)."""

@@ -53,15 +53,6 @@ def _targets(nodes: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return cell
 
 
-def _boundary_nodes(quads: np.ndarray, n_nodes: int) -> np.ndarray:
-    """Mask of the nodes on an edge that only one cell has."""
-    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    unique, count = np.unique(edges, axis=0, return_counts=True)
-    mask = np.zeros(n_nodes, dtype=bool)
-    mask[unique[count == 1].ravel()] = True
-    return mask
-
-
 def _one_pass(nodes: np.ndarray, quads: np.ndarray, target: np.ndarray, fixed: np.ndarray,
               floor: float) -> np.ndarray:
     """One Jacobi pass of the weighted centre averaging; returns the new node coordinates."""
@@ -88,12 +79,15 @@ def _one_pass(nodes: np.ndarray, quads: np.ndarray, target: np.ndarray, fixed: n
         new[back] = nodes[back]
 
 
-def equalize_sizes(nodes: np.ndarray, quads: np.ndarray, passes: int) -> np.ndarray:
+def equalize_sizes(nodes: np.ndarray, quads: np.ndarray, boundary: np.ndarray,
+                   passes: int) -> np.ndarray:
     """Return the node coordinates after ``passes`` size-equalising passes (module docstring).
 
     Args:
         nodes: ``(N, 2)`` coordinates.
         quads: ``(M, 4)`` node indices, counterclockwise, convex.
+        boundary: Indices of the nodes that stay (the boundary's,
+            :meth:`fem_runout.meshing.quadmesh.QuadMesh.boundary_nodes`).
         passes: Number of passes (0: the nodes unchanged).
 
     Returns:
@@ -105,7 +99,8 @@ def equalize_sizes(nodes: np.ndarray, quads: np.ndarray, passes: int) -> np.ndar
         return nodes
     quads = np.asarray(quads, dtype=np.int64)
     target = _targets(nodes, quads)
-    fixed = _boundary_nodes(quads, len(nodes))
+    fixed = np.zeros(len(nodes), dtype=bool)
+    fixed[np.asarray(boundary, dtype=np.int64)] = True
     floor = min(SINE_FLOOR, float(corner_sines(nodes[quads]).min()))
     for _ in range(passes):
         nodes = _one_pass(nodes, quads, target, fixed, floor)
