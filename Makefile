@@ -38,7 +38,7 @@ test: setup
 	@status=0; \
 	$(VENV)/bin/ruff check fem_runout mpm tests peers || status=1; \
 	timeout $(SERIAL_TIMEOUT) $(PY) -m pytest -q -x -n $(WORKERS) --dist loadfile tests \
-		--ignore=tests/mpi || status=1; \
+		--ignore=tests/mpi --durations=15 || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n $(NP) $(PY) -m pytest -q -x tests/mpi || status=1; \
 	timeout $(MPI_TIMEOUT) $(MPIEXEC) -n 3 $(PY) -m pytest -q -x $(RANK3_TESTS) || status=1; \
 	exit $$status

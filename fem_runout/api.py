@@ -114,12 +114,27 @@ def _checkpointer(case: Case, out: Path | None, comm):
     return Checkpointer(out / "checkpoints", spec.every, spec.keep, meta)
 
 
-def _restore(solver: Solver, callbacks: list, tree: dict) -> None:
-    """Restore the solver and every restartable callback from a checkpoint (collective)."""
-    from fem_runout.callbacks import restartable
+def _restore(case: Case, solver: Solver, callbacks: list, tree: dict) -> None:
+    """Restore the solver and every restartable callback from a checkpoint (collective).
 
-    solver.load_state(tree["solver"])
+    A checkpoint of another mesh is refused with the ``domain`` keys that differ between its
+    case and this one (an outline mesh also depends on ``domain.smoothing``, added after the
+    first checkpoints were written: those were meshed without it).
+    """
+    from fem_runout.callbacks import restartable
+    from fem_runout.checkpoint import MeshMismatch, check_nodes, domain_differences
+
     saved = tree.get("callbacks", {})
+    nodal = [tree["solver"].get("nodes"), *(s.get("nodes") for s in saved.values()
+                                            if isinstance(s, dict))]
+    try:  # before anything is restored or written (DAMPM's state has no nodes)
+        check_nodes(solver.V, next((n for n in nodal if isinstance(n, dict)), None))
+    except MeshMismatch as exc:
+        diff = domain_differences(tree.get("meta", {}).get("case", ""), dump_resolved(case))
+        detail = "; ".join(diff) if diff else "the same domain keys: another DEM or mesh file"
+        raise CaseError(f"--restart: {exc} ({detail}); allowed: a checkpoint written with "
+                        "this case's domain") from None
+    solver.load_state(tree["solver"])
     for name, cb in restartable(callbacks).items():
         if name in saved:
             cb.resume(saved[name])
@@ -201,7 +216,7 @@ def run(
     outputs = _Outputs(case, solver, out)
     every = [*outputs.callbacks, *callbacks]
     if tree is not None:
-        _restore(solver, every, tree)
+        _restore(case, solver, every, tree)
     elif not quiet:
         _say_released(solver, comm)
     progress = _Progress(case.time.end_time, case.name) if (not quiet and comm.rank == 0) \

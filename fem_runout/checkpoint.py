@@ -22,11 +22,39 @@ import numpy as np
 
 from fem_runout.errors import CaseError
 
-__all__ = ["FORMAT", "Checkpointer", "read_checkpoint", "read_tree", "scatter_nodal",
-           "write_tree"]
+__all__ = ["FORMAT", "Checkpointer", "MeshMismatch", "check_nodes", "domain_differences",
+           "read_checkpoint", "read_tree", "scatter_nodal", "write_tree"]
 
 FORMAT = "fem_runout-checkpoint-1"
 _NONE = "__none__"
+
+
+class MeshMismatch(CaseError):
+    """A checkpoint's nodes are not the case's (:func:`scatter_nodal`)."""
+
+
+def domain_differences(saved_case: str, case_text: str) -> list[str]:
+    """Return the ``domain`` keys whose values differ between two resolved cases.
+
+    Args:
+        saved_case: The resolved case stored in a checkpoint (YAML text).
+        case_text: The resolved case of the run (YAML text).
+
+    Returns:
+        One line per differing key, ``"domain.<key>: <checkpoint's> in the checkpoint, <ours>
+        here"`` (``absent`` for a key one of them lacks, e.g. a key added after the
+        checkpoint was written), in the case's key order.
+    """
+    import yaml
+
+    def domain(text: str) -> dict[str, Any]:
+        data = yaml.safe_load(text) if text else None
+        return data.get("domain", {}) if isinstance(data, dict) else {}
+
+    old, new = domain(saved_case), domain(case_text)
+    keys = list(new) + [k for k in old if k not in new]
+    return [f"domain.{k}: {old.get(k, 'absent')} in the checkpoint, {new.get(k, 'absent')} here"
+            for k in keys if old.get(k) != new.get(k)]
 
 
 def write_tree(group, tree: dict[str, Any]) -> None:
@@ -65,9 +93,31 @@ def scatter_nodal(V, nodes: dict[str, np.ndarray] | None) -> dict[str, np.ndarra
 
     Returns:
         Every array on this rank's local dofs (owned and ghosts), matched by coordinates.
+
+    Raises:
+        MeshMismatch: On every rank, if the nodes are not ``V``'s (:func:`check_nodes`).
     """
+    nodes = V.mesh.comm.bcast(nodes if V.mesh.comm.rank == 0 else None, root=0)
+    pos = _positions(V, nodes)
+    return {k: np.asarray(v)[pos] for k, v in nodes.items() if k not in ("x", "y")}
+
+
+def check_nodes(V, nodes: dict[str, np.ndarray] | None) -> None:
+    """Raise :class:`MeshMismatch` on every rank unless ``nodes`` are ``V``'s (collective).
+
+    Args:
+        V: The scalar Q1 space.
+        nodes: On rank 0, a checkpoint's nodal arrays with the coordinates ``x``, ``y``
+            (None: nothing to check).
+    """
+    nodes = V.mesh.comm.bcast(nodes if V.mesh.comm.rank == 0 else None, root=0)
+    if nodes is not None:
+        _positions(V, nodes)
+
+
+def _positions(V, nodes: dict[str, np.ndarray]) -> np.ndarray:
+    """Row of ``nodes`` of each local dof of ``V``, matched by coordinates (collective)."""
     comm = V.mesh.comm
-    nodes = comm.bcast(nodes if comm.rank == 0 else None, root=0)
     coords = V.tabulate_dof_coordinates()
     x0, y0 = float(nodes["x"].min()), float(nodes["y"].min())
     tol = max(float(np.ptp(nodes["x"])), float(np.ptp(nodes["y"])), 1.0) * 1e-9
@@ -80,10 +130,10 @@ def scatter_nodal(V, nodes: dict[str, np.ndarray] | None) -> dict[str, np.ndarra
     order = np.argsort(ref, kind="stable")
     mine = key(coords[:, 0], coords[:, 1])
     pos = order[np.clip(np.searchsorted(ref[order], mine), 0, ref.size - 1)]
-    if not np.array_equal(ref[pos], mine):
-        raise CaseError("the checkpoint's nodes are not this case's mesh (different domain "
-                        "or cells)")
-    return {k: np.asarray(v)[pos] for k, v in nodes.items() if k not in ("x", "y")}
+    same = np.array_equal(ref[pos], mine) and V.dofmap.index_map.size_global == ref.size
+    if comm.allreduce(int(not same)):  # every rank raises
+        raise MeshMismatch("the checkpoint's nodes are not this case's mesh")
+    return pos
 
 
 def read_checkpoint(path: str | Path, comm) -> dict[str, Any]:

@@ -15,7 +15,7 @@ import pytest
 from mpi4py import MPI
 
 from fem_runout.api import run
-from fem_runout.checkpoint import read_tree, write_tree
+from fem_runout.checkpoint import domain_differences, read_tree, write_tree
 from fem_runout.config import load_case
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -182,12 +182,19 @@ def test_restart_of_another_method_or_mesh_is_refused(tmp_path):
     case = ROOT / "cases/hemisphere.yaml"
     run(case_of("hemisphere", "tg2", tmp_path / "a", "output.checkpoint.every=0.3"), comm=COMM)
     checkpoint = sorted((tmp_path / "a" / "checkpoints").glob("*.h5"))[0]
-    for extra, message in ((["--method", "mpm"], "is of method 'tg2', the case runs 'mpm'"),
-                           (["--set", "domain.cells=[20,30]"], "not this case's mesh")):
+    mesh = "not this case's mesh"
+    for extra, messages in (
+            (["--method", "mpm"], ["is of method 'tg2', the case runs 'mpm'"]),
+            (["--set", "domain.cells=[20,30]"], [mesh, "domain.cells: [30, 30] in the "
+                                                 "checkpoint, [20, 30] here"]),
+            # every node of this mesh is one of the checkpoint's: still another mesh
+            (["--set", "domain.cells=[30,15]", "--set", "domain.extent=[0,50,0,25]"],
+             [mesh, "domain.cells: [30, 30] in the checkpoint, [30, 15] here",
+              "domain.extent: "])):
         proc = _cli(str(case), "--out", "a", "--restart", str(checkpoint), *extra, cwd=tmp_path)
         assert proc.wait(timeout=120) == 2
         err = proc.stderr.read()
-        assert message in err and "Traceback" not in err
+        assert all(m in err for m in messages) and "Traceback" not in err, err
 
 
 def test_bad_state_saves_a_checkpoint_that_restarts_with_changed_numerics(tmp_path):
@@ -240,3 +247,14 @@ def test_disk_full_is_one_message_and_earlier_outputs_stay_readable(tmp_path):
     assert reader.read()[0].n_points == 61 * 61
     steps = read_vtx_bp4(out / "fields.bp")
     assert len(steps) >= len(reader.time_values)
+
+
+def test_domain_differences_name_the_keys_an_old_checkpoint_lacks():
+    old = "name: x\ndomain: {outline: o.geojson, cell_size: 5.0, boundary: open}\n"
+    new = ("name: x\ndomain: {outline: o.geojson, cell_size: 5.0, boundary: open, "
+           "smoothing: 20}\n")
+    assert domain_differences(old, new) == ["domain.smoothing: absent in the checkpoint, 20 here"]
+    assert domain_differences(new, new) == []
+    assert domain_differences(new, old) == ["domain.smoothing: 20 in the checkpoint, absent here"]
+    first = domain_differences("", new)[0]
+    assert first == "domain.outline: absent in the checkpoint, o.geojson here"

@@ -61,3 +61,17 @@ def test_restart_on_another_rank_count(tmp_path_factory, method, name):
                restart=_checkpoints(root / "one")[-2])
     if WORLD.rank == 0:
         _close(whole, many)
+
+
+@pytest.mark.parametrize("method", ["tg2", "mpm"])
+def test_restart_on_a_part_of_the_mesh_is_refused_on_every_rank(tmp_path_factory, method):
+    """Every node of the smaller mesh is one of the checkpoint's, on every rank: refused."""
+    from fem_runout.errors import CaseError
+
+    root = _folder(tmp_path_factory)
+    run(case_of("hemisphere", method, root / "a", "time.end=0.3",
+                "output.checkpoint.every=0.3"), comm=WORLD)
+    part = case_of("hemisphere", method, root / "a", "domain.cells=[30,15]",
+                   "domain.extent=[0,50,0,25]")
+    with pytest.raises(CaseError, match="domain.cells: \\[30, 30\\] in the checkpoint"):
+        run(part, comm=WORLD, restart=_checkpoints(root / "a")[-1])
