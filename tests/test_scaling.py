@@ -47,10 +47,13 @@ def test_side_by_side_copies_give_the_machines_ceiling():
     s = scaling.summarize(runs)
     assert s["side"] == pytest.approx([16.5, 16.5, 19.0], rel=1e-15)
     assert s["ceiling"] == pytest.approx(2 * 14.0 / 16.5, rel=1e-15)
+    # an even split waits for the slower core: the rounds' slowest copies 17, 16.5, 20
+    assert s["side_slowest"] == [17.0, 16.5, 20.0]
+    assert s["even_ceiling"] == pytest.approx(2 * 14.0 / 17.0, rel=1e-15)
     assert s["ratio"] == pytest.approx(14.0 / 9.5, rel=1e-15) and s["same"]
     table = scaling.format_table({"tg2": s}, 2)
-    assert "| 2 × 1 rank at once [s], per round | ceiling |" in table
-    assert "| 16.50, 16.50, 19.00 | 1.70× |" in table
+    assert "| 2 × 1 rank at once [s], per round | ceiling (even split) |" in table
+    assert "| 16.50, 16.50, 19.00 | 1.70× (1.65×) |" in table
     runs[1]["side"][0] = _summary(16.0, steps=901)  # a copy with another result is flagged
     assert not scaling.summarize(runs)["same"]
 

@@ -22,7 +22,9 @@ other (shared caches, memory bandwidth, a virtual machine's host): R runs of the
 once finish R ``t_1 / t_side`` times faster than R runs one after the other, the ceiling of
 the speed-up on R ranks before any message or imbalance (session 37, a 2-vCPU Intel instance:
 1.99–2.14×, no measurable slow-down; single pairs timed by hand had suggested 13–22 %, the
-instance's drift).
+instance's drift). That ceiling takes the copies' mean; in brackets, the ceiling of an even
+split, ``R t_1 / max(copies)``: the ranks of an evenly split run wait for the one on the
+slowest core (session 45: one of two vCPUs ran the same 1-rank run 15 % slower than the other).
 """
 
 from __future__ import annotations
@@ -84,7 +86,8 @@ def summarize(runs: list[dict[int, dict[str, Any]]]) -> dict[str, Any]:
         run has the same :data:`SAME` values) and ``result`` (the first run's values). With
         side-by-side runs (key ``"side"``: the summaries of the copies run at once) also
         ``side`` (the rounds' mean wall time of a copy), its median ``side_median`` and
-        ``ceiling``, ``R`` times the 1-rank median over it.
+        ``ceiling``, ``R`` times the 1-rank median over it; ``side_slowest`` (the rounds'
+        slowest copy) and ``even_ceiling``, ``R`` times the 1-rank median over its median.
     """
     side = [r.get("side") for r in runs]
     runs = [{n: s for n, s in r.items() if n != "side"} for r in runs]
@@ -102,6 +105,8 @@ def summarize(runs: list[dict[int, dict[str, Any]]]) -> dict[str, Any]:
         out["side"] = [statistics.fmean(float(c["wall_time"]) for c in r) for r in side]
         out["side_median"] = statistics.median(out["side"])
         out["ceiling"] = many * medians[1] / out["side_median"]
+        out["side_slowest"] = [max(float(c["wall_time"]) for c in r) for r in side]
+        out["even_ceiling"] = many * medians[1] / statistics.median(out["side_slowest"])
     return out
 
 
@@ -120,11 +125,12 @@ def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
     apart) are given as their range and median: on a machine whose speed drifts, the median of
     these paired ratios is less exposed to the drift than the ratio of the two medians.
     With side-by-side runs two more columns: a copy's wall time per round (the mean of the
-    ``R`` copies) and the ceiling ``R t_1 / t_side`` by medians.
+    ``R`` copies) and the ceiling ``R t_1 / t_side`` by medians, with the even split's
+    ceiling (the slowest copy's) in brackets.
     """
     side = all("side" in s for s in rows.values())
-    extra = (f" {ranks} × 1 rank at once [s], per round | ceiling |", "---|---:|") if side \
-        else ("", "")
+    extra = (f" {ranks} × 1 rank at once [s], per round | ceiling (even split) |", "---|---:|") \
+        if side else ("", "")
     lines = [f"| method | 1 rank [s], per round | {ranks} ranks [s], per round | medians [s] | "
              f"speed-up by medians | per round (their median) |{extra[0]} run-out [m] | "
              "area [m²] | steps | "
@@ -134,8 +140,8 @@ def format_table(rows: dict[str, dict[str, Any]], ranks: int) -> str:
         w1, wr = (", ".join(f"{t:.2f}" for t in s["walls"][n]) for n in (1, ranks))
         rr = s["round_ratios"]
         res = s["result"]
-        more = (f" {', '.join(f'{t:.2f}' for t in s['side'])} | {s['ceiling']:.2f}× |"
-                if side else "")
+        more = (f" {', '.join(f'{t:.2f}' for t in s['side'])} | {s['ceiling']:.2f}× "
+                f"({s['even_ceiling']:.2f}×) |" if side else "")
         lines.append(
             f"| {method} | {w1} | {wr} | {s['medians'][1]:.2f} / {s['medians'][ranks]:.2f} | "
             f"**{s['ratio']:.2f}×** | {min(rr):.2f}–{max(rr):.2f} "
