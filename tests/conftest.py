@@ -1,12 +1,18 @@
-"""Test configuration: under MPI, a failing rank ends the whole job instead of hanging it."""
+"""Test configuration: under MPI, a failing rank ends the whole job instead of hanging it, and
+ranks that finish a test early wait for the others asleep."""
 
 import os
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+import time  # noqa: E402
+
 import pytest  # noqa: E402
 from mpi4py import MPI  # noqa: E402
+
+#: Sleep between two polls of the end-of-test barrier [s].
+IDLE_POLL = 0.002
 
 
 @pytest.hookimpl(trylast=True)
@@ -19,3 +25,22 @@ def pytest_runtest_logreport(report):
     if comm.size > 1 and report.failed:
         print(f"\n[rank {comm.rank}] {report.nodeid} failed:\n{report.longreprtext}", flush=True)
         comm.Abort(1)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    """After a test that passed on this rank, wait for the other ranks without spinning.
+
+    Many MPI tests end with a serial reference run on rank 0 (``COMM_SELF``). Without this the
+    other ranks would wait for it inside the next test's first collective, where MPICH polls
+    and yields in a loop: on 2 cores the reference then shares its core with a spinning rank
+    (1 spinning rank with ``-n 2``, 2 with ``-n 3``). A rank whose test failed does not wait:
+    its report aborts the job (:func:`pytest_runtest_logreport`).
+    """
+    result = yield
+    comm = MPI.COMM_WORLD
+    if comm.size > 1:
+        request = comm.Ibarrier()
+        while not request.Test():
+            time.sleep(IDLE_POLL)
+    return result

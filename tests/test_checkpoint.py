@@ -105,10 +105,17 @@ def _series(path: Path) -> list[list[str]]:
         return list(csv.reader(f))
 
 
-def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path):
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    """The uninterrupted :data:`SLOW` hemisphere run from the command line (its folder)."""
+    folder = tmp_path_factory.mktemp("uninterrupted")
+    proc = _cli(str(ROOT / "cases/hemisphere.yaml"), "--out", "whole", *SLOW, cwd=folder)
+    assert proc.wait(timeout=300) == 0, proc.stderr.read()
+    return folder / "whole"
+
+
+def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path, whole):
     case = str(ROOT / "cases/hemisphere.yaml")
-    whole = _cli(case, "--out", "whole", *SLOW, cwd=tmp_path)
-    assert whole.wait(timeout=300) == 0, whole.stderr.read()
     proc = _cli(case, "--out", "cut", *SLOW, cwd=tmp_path)
     _wait_for("cut/checkpoints/checkpoint_*.h5", tmp_path)
     proc.send_signal(signal.SIGTERM)
@@ -121,15 +128,13 @@ def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path)
     assert summary["t_end"] < 1.2  # the outputs of the interrupted run were written
     again = _cli(case, "--out", "cut", *SLOW, "--restart", checkpoint, cwd=tmp_path)
     assert again.wait(timeout=300) == 0, again.stderr.read()
-    a, b = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "cut"))
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
-    assert _series(tmp_path / "whole" / "series.csv") == _series(tmp_path / "cut" / "series.csv")
+    assert _series(whole / "series.csv") == _series(tmp_path / "cut" / "series.csv")
 
 
-def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path):
+def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path, whole):
     case = str(ROOT / "cases/hemisphere.yaml")
-    whole = _cli(case, "--out", "whole", *SLOW, cwd=tmp_path)
-    assert whole.wait(timeout=300) == 0, whole.stderr.read()
     mpiexec = Path(sys.executable).parent / "mpiexec"
     proc = subprocess.Popen([str(mpiexec), "-n", "2", sys.executable, "-m", "fem_runout", case,
                              "--out", "cut", *SLOW], cwd=tmp_path, stdout=subprocess.PIPE,
@@ -142,14 +147,12 @@ def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path):
     checkpoint = err.split("--restart ")[1].split()[0]
     again = _cli(case, "--out", "cut", *SLOW, "--restart", checkpoint, cwd=tmp_path)
     assert again.wait(timeout=300) == 0, again.stderr.read()
-    a, b = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "cut"))
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
 
 
-def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path):
+def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path, whole):
     case = str(ROOT / "cases/hemisphere.yaml")
-    whole = _cli(case, "--out", "whole", *SLOW, cwd=tmp_path)
-    assert whole.wait(timeout=300) == 0, whole.stderr.read()
     # every checkpoint pauses 2 s between its temporary file and the rename (a test hook)
     env = {**__import__("os").environ, "FEM_RUNOUT_CHECKPOINT_PAUSE": "2"}
     proc = _cli(case, "--out", "cut", *SLOW, cwd=tmp_path, env=env)
@@ -162,7 +165,7 @@ def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path):
     assert len(complete) == 1 and list(folder.glob("*.tmp"))
     again = _cli(case, "--out", "cut", *SLOW, "--restart", str(complete[0]), cwd=tmp_path)
     assert again.wait(timeout=300) == 0, again.stderr.read()
-    a, b = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "cut"))
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
 
 

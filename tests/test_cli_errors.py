@@ -197,3 +197,27 @@ def test_main_returns_2_in_process(tmp_path: Path, capsys: pytest.CaptureFixture
     assert main([str(tmp_path / "case.yaml")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "time.cfl: must be > 0 and <= 1, got 2" in err
+
+
+#: Modules a rejected case must not load (the solver stack: 2-3 s of imports).
+HEAVY = ("dolfinx", "petsc4py", "numba", "pyvista", "gmsh", "rasterio")
+LIGHT = """
+import sys
+from fem_runout.cli import main
+code = main(sys.argv[1:])
+print(",".join(m for m in {heavy!r} if m in sys.modules))
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize("law", [{"law": "voellmy", "mu": 0.2},
+                                 {"law": "coulomb", "phi_deg": 90}])
+def test_a_rejected_case_loads_no_solver_module(tmp_path: Path, law: dict[str, Any]) -> None:
+    """The command line validates the whole case (friction laws' parameters included) before
+    it imports DOLFINx, PETSc, numba or the renderers: a typo's message comes in about 1 s."""
+    (tmp_path / "case.yaml").write_text(yaml.safe_dump(_set(GOOD, "material.friction", law)))
+    result = subprocess.run([sys.executable, "-c", LIGHT.format(heavy=HEAVY), "case.yaml"],
+                            cwd=tmp_path, env=_env(), capture_output=True, text=True,
+                            timeout=120)
+    _check_rejected(result, "material.friction.")
+    assert result.stdout.strip() == ""

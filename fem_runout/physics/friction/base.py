@@ -79,13 +79,11 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from fem_runout.physics.friction.integrate_kernel import integrate_nodes
-from fem_runout.physics.friction.newton import solve_direction
 from fem_runout.physics.friction.registry import Parameter, ParameterError
-from fem_runout.physics.slope import BedFrame
 
 if TYPE_CHECKING:
     from fem_runout.config.schema import FrictionSpec
+    from fem_runout.physics.slope import BedFrame
 
 __all__ = [
     "GAMMA",
@@ -350,6 +348,8 @@ class FrictionLaw:
         Returns:
             ``(qx, qy)`` after ``dt``, parallel to the start's momentum and not longer.
         """
+        from fem_runout.physics.friction.integrate_kernel import integrate_nodes  # compiled
+
         h = np.asarray(h, dtype=float)
         k = self.drag_coefficient(np.where(h > self.dry_tol, h, 1.0), bed)
         return integrate_nodes(h, qx, qy, dt, SDIRK_GAMMA, self.mu, self.gravity, self.dry_tol,
@@ -391,6 +391,8 @@ class FrictionLaw:
         ``gc``, ``gt``: gravity of the yield and drag terms (:meth:`scales`); ``k``: the drag
         coefficient (:meth:`drag_coefficient`).
         """
+        from fem_runout.physics.friction.newton import solve_direction  # compiled
+
         # one compiled pass: each node stops at its own convergence, so its result does not
         # depend on which other nodes share its rank (the same bits on any partition)
         return solve_direction(h, star, guess, n_i, moving, gc, gt, k, theta, self.mu,

@@ -33,10 +33,10 @@ import numpy as np
 
 from fem_runout.physics.friction.base import FrictionLaw
 from fem_runout.physics.friction.registry import Parameter
-from fem_runout.physics.slope import BedFrame
 
 if TYPE_CHECKING:
     from fem_runout.config.schema import FrictionSpec
+    from fem_runout.physics.slope import BedFrame
 
 __all__ = ["ROUGHNESS", "Manning"]
 
