@@ -6,13 +6,10 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import time  # noqa: E402
-
 import pytest  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
-#: Sleep between two polls of the end-of-test barrier [s].
-IDLE_POLL = 0.002
+from tests.idle import idle_barrier  # noqa: E402
 
 
 @pytest.hookimpl(trylast=True)
@@ -32,15 +29,11 @@ def pytest_runtest_call(item):
     """After a test that passed on this rank, wait for the other ranks without spinning.
 
     Many MPI tests end with a serial reference run on rank 0 (``COMM_SELF``). Without this the
-    other ranks would wait for it inside the next test's first collective, where MPICH polls
-    and yields in a loop: on 2 cores the reference then shares its core with a spinning rank
-    (1 spinning rank with ``-n 2``, 2 with ``-n 3``). A rank whose test failed does not wait:
-    its report aborts the job (:func:`pytest_runtest_logreport`).
+    other ranks would wait for it inside the next test's first collective, spinning beside it
+    (:func:`tests.idle.idle_barrier`). A rank whose test failed does not wait: its report
+    aborts the job (:func:`pytest_runtest_logreport`).
     """
     result = yield
-    comm = MPI.COMM_WORLD
-    if comm.size > 1:
-        request = comm.Ibarrier()
-        while not request.Test():
-            time.sleep(IDLE_POLL)
+    if MPI.COMM_WORLD.size > 1:
+        idle_barrier(MPI.COMM_WORLD)
     return result

@@ -202,7 +202,8 @@ def test_restart_of_another_method_or_mesh_is_refused(tmp_path):
 
 def test_bad_state_saves_a_checkpoint_that_restarts_with_changed_numerics(tmp_path):
     case = str(ROOT / "cases/hemisphere.yaml")
-    args = ["--set", "domain.cells=[30,30]", "--set", "time.end=0.9", "--quiet"]
+    args = ["--set", "domain.cells=[30,30]", "--set", "time.end=0.9", "--set",
+            "output.pictures=false", "--quiet"]
     whole = _cli(case, "--out", "whole", *args, cwd=tmp_path)
     assert whole.wait(timeout=300) == 0
     # the hemisphere collapses at up to 8 m/s: a 5 m/s limit stops it
