@@ -138,14 +138,35 @@ def _check_rejected(result: subprocess.CompletedProcess[str], needle: str) -> No
     assert needle in lines[0]
 
 
-@pytest.mark.parametrize(
-    ("content", "args", "needle"), [c[1:] for c in BAD_CASES], ids=[c[0] for c in BAD_CASES]
-)
-def test_bad_case_is_rejected(tmp_path: Path, content: Any, args: list[str], needle: str) -> None:
+#: Bad cases also run through the real ``python -m fem_runout`` (the others call
+#: :func:`fem_runout.cli.main` in this process: the same code, without a second of start-up).
+THROUGH_PROCESS = {"unknown-top-level-key", "invalid-yaml", "set-bad-value", "phi-90"}
+
+
+def _main_in(cwd: Path, args: list[str], capsys: pytest.CaptureFixture[str],
+             monkeypatch: pytest.MonkeyPatch) -> subprocess.CompletedProcess[str]:
+    """:func:`fem_runout.cli.main` run in ``cwd`` in this process, as a finished process."""
+    from fem_runout.cli import main
+
+    monkeypatch.chdir(cwd)
+    capsys.readouterr()
+    code = main(args)
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out.out, out.err)
+
+
+@pytest.mark.parametrize(("name", "content", "args", "needle"), BAD_CASES,
+                         ids=[c[0] for c in BAD_CASES])
+def test_bad_case_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                              monkeypatch: pytest.MonkeyPatch, name: str, content: Any,
+                              args: list[str], needle: str) -> None:
     case = tmp_path / "case.yaml"
     case.write_text(content if isinstance(content, str) else yaml.safe_dump(content))
     before = _tree(tmp_path)
-    result = _run(tmp_path, ["case.yaml", *args])
+    if name in THROUGH_PROCESS:
+        result = _run(tmp_path, ["case.yaml", *args])
+    else:
+        result = _main_in(tmp_path, ["case.yaml", *args], capsys, monkeypatch)
     _check_rejected(result, needle)
     assert _tree(tmp_path) == before
     assert not (tmp_path / "out").exists()
