@@ -130,6 +130,23 @@ def test_inclined_dam_break_front_approaches_exact_tip():
     assert fronts[330] > get("mpm").paper["front"][5.5]
 
 
+def test_a_strip_of_the_channel_gives_the_channels_answer():
+    """Seed §4.1 on 3 of 11 rows across, walls on both sides: the same nodal depths and steps.
+
+    The flow is y-invariant, so the strip drops particles and nodes that repeat a column; the
+    benchmark ladders' tests run the dam break on such strips (``tests/test_references.py``).
+    """
+    common = ("method=mpm", "time.end=2.75", "output.every=2.75")
+    full = run(case("inclined_dam_break", "domain.cells=[165,11]", *common), write=False,
+               comm=COMM)
+    strip = run(case("inclined_dam_break", "domain.cells=[165,3]",
+                     f"domain.extent=[0, 300, 0, {20 * 3 / 11!r}]", *common),
+                write=False, comm=COMM)
+    bottom = full.h.reshape(12, 166)[0]
+    assert full.steps == strip.steps and bottom.max() > 0.5
+    assert np.abs(strip.h.reshape(4, 166) - bottom).max() <= 1e-10
+
+
 def test_particle_cloud_is_written_for_paraview(tmp_path, monkeypatch):
     import pyvista as pv
 

@@ -4,6 +4,7 @@ The measured tests iterate over every implemented method, with the bounds stated
 (from the TG2-PC numbers in docs/benchmarks.md, with a margin).
 """
 
+import functools
 import math
 
 import numpy as np
@@ -24,7 +25,8 @@ METHODS = sorted(method_names())
 def _ladder(fn, params, method):
     levels = [fn(p, method, COMM) for p in params]
     errors = [lv.error for lv in levels]
-    print(f"{fn.__name__} [{method}]: errors {errors}, orders {orders(errors)[1:]}")
+    name = getattr(fn, "func", fn).__name__
+    print(f"{name} [{method}]: errors {errors}, orders {orders(errors)[1:]}")
     return levels, errors, [o for o in orders(errors) if o is not None]
 
 
@@ -152,8 +154,12 @@ def test_shear_decay_converges(method):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_inclined_dam_break_front_error_shrinks(method):
-    """Relative front error at 11 s: TG2-PC 0.080, 0.065, DAMPM 0.085, 0.057 (dx = 2, 1 m)."""
-    _, errors, _ = _ladder(ladders.dam_break, (225, 450), method)
+    """Relative front error at 11 s: TG2-PC 0.070, 0.055, DAMPM 0.085, 0.057 (dx = 2, 1 m).
+
+    On a strip of the channel three cells wide (the same cells, fronts and steps as the whole
+    20 m channel, checked for both
+    methods by ``test_a_strip_of_the_channel_gives_the_channels_answer``)."""
+    _, errors, _ = _ladder(functools.partial(ladders.dam_break, rows=3), (225, 450), method)
     assert errors[1] < errors[0] < 0.1
 
 

@@ -103,12 +103,19 @@ def lake_errors(result, level: float = 10.0, dry: float = 1e-6) -> dict[str, tup
     }
 
 
-def assert_same_on_ranks(c, world, tol: float = 1e-10):
+def assert_same_on_ranks(c, world, tol: float = 1e-10, serial=None):
     """Run ``c`` on ``world`` and serially; on rank 0 assert the results agree (collective).
 
     Same steps and particle count (None for mesh methods), same node order, fields and
     peaks within ``tol`` relative, same final volume and mass error to 1e-12; with
     ``tol = 0`` the series' volume, kinetic energy and wet area bit for bit at every step.
+
+    Args:
+        c: The case.
+        world: The communicator of the parallel run.
+        tol: Relative tolerance of the fields (0: the same bits).
+        serial: The serial run of ``c`` on rank 0 if already done
+            (:func:`tests.serial_runs.serial_references`); run here if None.
 
     Returns:
         The parallel result on rank 0, None elsewhere.
@@ -118,9 +125,9 @@ def assert_same_on_ranks(c, world, tol: float = 1e-10):
     from fem_runout.api import run
 
     par = run(c, write=False, comm=world)
-    ser = run(c, write=False, comm=MPI.COMM_SELF) if world.rank == 0 else None
     if world.rank != 0:
         return None
+    ser = serial if serial is not None else run(c, write=False, comm=MPI.COMM_SELF)
     assert par.steps == ser.steps and par.particles == ser.particles
     np.testing.assert_allclose(par.x, ser.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(par.y, ser.y, rtol=0, atol=1e-12)
