@@ -17,6 +17,7 @@ from mpi4py import MPI
 from fem_runout.api import run
 from fem_runout.checkpoint import domain_differences, read_tree, write_tree
 from fem_runout.config import load_case
+from tests.cli_helpers import main_in
 
 ROOT = Path(__file__).resolve().parents[1]
 COMM = MPI.COMM_SELF
@@ -114,7 +115,8 @@ def whole(tmp_path_factory) -> Path:
     return folder / "whole"
 
 
-def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path, whole):
+def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path, whole, capsys,
+                                                                       monkeypatch):
     case = str(ROOT / "cases/hemisphere.yaml")
     proc = _cli(case, "--out", "cut", *SLOW, cwd=tmp_path)
     _wait_for("cut/checkpoints/checkpoint_*.h5", tmp_path)
@@ -126,14 +128,16 @@ def test_sigterm_writes_a_checkpoint_and_the_restart_finishes_the_same(tmp_path,
     assert Path(tmp_path / checkpoint).is_file()
     summary = json.loads((tmp_path / "cut" / "summary.json").read_text())
     assert summary["t_end"] < 1.2  # the outputs of the interrupted run were written
-    again = _cli(case, "--out", "cut", *SLOW, "--restart", checkpoint, cwd=tmp_path)
-    assert again.wait(timeout=300) == 0, again.stderr.read()
+    again = main_in(tmp_path, [case, "--out", "cut", *SLOW, "--restart", checkpoint], capsys,
+                    monkeypatch)  # the restart in this process: the same code
+    assert again.returncode == 0, again.stderr
     a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
     assert _series(whole / "series.csv") == _series(tmp_path / "cut" / "series.csv")
 
 
-def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path, whole):
+def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path, whole, capsys,
+                                                                    monkeypatch):
     case = str(ROOT / "cases/hemisphere.yaml")
     mpiexec = Path(sys.executable).parent / "mpiexec"
     proc = subprocess.Popen([str(mpiexec), "-n", "2", sys.executable, "-m", "fem_runout", case,
@@ -145,13 +149,15 @@ def test_sigterm_under_mpiexec_stops_every_rank_and_restarts_on_one(tmp_path, wh
     err = proc.stderr.read()
     assert err.count("stopped by SIGTERM at t = ") == 1 and "Traceback" not in err
     checkpoint = err.split("--restart ")[1].split()[0]
-    again = _cli(case, "--out", "cut", *SLOW, "--restart", checkpoint, cwd=tmp_path)
-    assert again.wait(timeout=300) == 0, again.stderr.read()
+    again = main_in(tmp_path, [case, "--out", "cut", *SLOW, "--restart", checkpoint], capsys,
+                    monkeypatch)  # the restart in this process: the same code
+    assert again.returncode == 0, again.stderr
     a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
 
 
-def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path, whole):
+def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path, whole, capsys,
+                                                                   monkeypatch):
     case = str(ROOT / "cases/hemisphere.yaml")
     # every checkpoint pauses 2 s between its temporary file and the rename (a test hook)
     env = {**__import__("os").environ, "FEM_RUNOUT_CHECKPOINT_PAUSE": "2"}
@@ -163,8 +169,9 @@ def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path, who
     proc.wait(timeout=30)
     complete = sorted(folder.glob("checkpoint_*.h5"))
     assert len(complete) == 1 and list(folder.glob("*.tmp"))
-    again = _cli(case, "--out", "cut", *SLOW, "--restart", str(complete[0]), cwd=tmp_path)
-    assert again.wait(timeout=300) == 0, again.stderr.read()
+    again = main_in(tmp_path, [case, "--out", "cut", *SLOW, "--restart", str(complete[0])],
+                    capsys, monkeypatch)
+    assert again.returncode == 0, again.stderr
     a, b = (json.loads((d / "summary.json").read_text()) for d in (whole, tmp_path / "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
 
@@ -173,15 +180,16 @@ def test_sigkill_while_writing_a_checkpoint_keeps_the_previous_one(tmp_path, who
     (["--restart", "missing.h5"], "error: --restart: no checkpoint file 'missing.h5'"),
     (["--restart", "case.yaml"], "error: --restart: cannot read checkpoint 'case.yaml'"),
 ])
-def test_bad_restart_is_a_clear_error(tmp_path, extra, message):
+def test_bad_restart_is_a_clear_error(tmp_path, extra, message, capsys, monkeypatch):
     (tmp_path / "case.yaml").write_text("h5 it is not\n")
-    proc = _cli(str(ROOT / "cases/hemisphere.yaml"), "--out", "out", *extra, cwd=tmp_path)
-    assert proc.wait(timeout=120) == 2
-    err = proc.stderr.read()
-    assert message in err and "Traceback" not in err
+    proc = main_in(tmp_path, [str(ROOT / "cases/hemisphere.yaml"), "--out", "out", *extra],
+                   capsys, monkeypatch)
+    assert proc.returncode == 2
+    assert message in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "out").exists()
 
 
-def test_restart_of_another_method_or_mesh_is_refused(tmp_path):
+def test_restart_of_another_method_or_mesh_is_refused(tmp_path, capsys, monkeypatch):
     case = ROOT / "cases/hemisphere.yaml"
     run(case_of("hemisphere", "tg2", tmp_path / "a", "output.checkpoint.every=0.3"), comm=COMM)
     checkpoint = sorted((tmp_path / "a" / "checkpoints").glob("*.h5"))[0]
@@ -194,27 +202,32 @@ def test_restart_of_another_method_or_mesh_is_refused(tmp_path):
             (["--set", "domain.cells=[30,15]", "--set", "domain.extent=[0,50,0,25]"],
              [mesh, "domain.cells: [30, 30] in the checkpoint, [30, 15] here",
               "domain.extent: "])):
-        proc = _cli(str(case), "--out", "a", "--restart", str(checkpoint), *extra, cwd=tmp_path)
-        assert proc.wait(timeout=120) == 2
-        err = proc.stderr.read()
+        proc = main_in(tmp_path, [str(case), "--out", "a", "--restart", str(checkpoint),
+                                  *extra], capsys, monkeypatch)
+        assert proc.returncode == 2
+        err = proc.stderr
         assert all(m in err for m in messages) and "Traceback" not in err, err
 
 
-def test_bad_state_saves_a_checkpoint_that_restarts_with_changed_numerics(tmp_path):
+def test_bad_state_saves_a_checkpoint_that_restarts_with_changed_numerics(tmp_path, capsys,
+                                                                         monkeypatch):
+    """The command line in this process (its exit codes and messages are the process's)."""
     case = str(ROOT / "cases/hemisphere.yaml")
     args = ["--set", "domain.cells=[30,30]", "--set", "time.end=0.9", "--set",
             "output.pictures=false", "--quiet"]
-    whole = _cli(case, "--out", "whole", *args, cwd=tmp_path)
-    assert whole.wait(timeout=300) == 0
+    whole = main_in(tmp_path, [case, "--out", "whole", *args], capsys, monkeypatch)
+    assert whole.returncode == 0
     # the hemisphere collapses at up to 8 m/s: a 5 m/s limit stops it
-    bad = _cli(case, "--out", "cut", *args, "--set", "numerics.max_speed=5", cwd=tmp_path)
-    assert bad.wait(timeout=300) == 3
-    err = bad.stderr.read()
+    bad = main_in(tmp_path, [case, "--out", "cut", *args, "--set", "numerics.max_speed=5"],
+                  capsys, monkeypatch)
+    assert bad.returncode == 3
+    err = bad.stderr
     assert "Traceback" not in err and err.count("\n") == 1
     assert "stopped at t = " in err and "above numerics.max_speed = 5 m/s near (x, y) = (" in err
     checkpoint = err.split("--restart ")[1].split(")")[0]
-    again = _cli(case, "--out", "cut", *args, "--restart", checkpoint, cwd=tmp_path)
-    assert again.wait(timeout=300) == 0, again.stderr.read()
+    again = main_in(tmp_path, [case, "--out", "cut", *args, "--restart", checkpoint], capsys,
+                    monkeypatch)
+    assert again.returncode == 0, again.stderr
     a, b = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("whole", "cut"))
     assert all(a[k] == b[k] for k in SUMMARY)
 

@@ -10,6 +10,8 @@ from typing import Any
 import pytest
 import yaml
 
+from tests.cli_helpers import main_in
+
 ROOT = Path(__file__).resolve().parents[1]
 
 GOOD: dict[str, Any] = {
@@ -143,18 +145,6 @@ def _check_rejected(result: subprocess.CompletedProcess[str], needle: str) -> No
 THROUGH_PROCESS = {"unknown-top-level-key", "invalid-yaml", "set-bad-value", "phi-90"}
 
 
-def _main_in(cwd: Path, args: list[str], capsys: pytest.CaptureFixture[str],
-             monkeypatch: pytest.MonkeyPatch) -> subprocess.CompletedProcess[str]:
-    """:func:`fem_runout.cli.main` run in ``cwd`` in this process, as a finished process."""
-    from fem_runout.cli import main
-
-    monkeypatch.chdir(cwd)
-    capsys.readouterr()
-    code = main(args)
-    out = capsys.readouterr()
-    return subprocess.CompletedProcess(args, code, out.out, out.err)
-
-
 @pytest.mark.parametrize(("name", "content", "args", "needle"), BAD_CASES,
                          ids=[c[0] for c in BAD_CASES])
 def test_bad_case_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str],
@@ -166,7 +156,7 @@ def test_bad_case_is_rejected(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     if name in THROUGH_PROCESS:
         result = _run(tmp_path, ["case.yaml", *args])
     else:
-        result = _main_in(tmp_path, ["case.yaml", *args], capsys, monkeypatch)
+        result = main_in(tmp_path, ["case.yaml", *args], capsys, monkeypatch)
     _check_rejected(result, needle)
     assert _tree(tmp_path) == before
     assert not (tmp_path / "out").exists()
