@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["exact_total", "exact_totals", "extractors", "fold_extractors"]
+__all__ = ["exact_total", "exact_totals", "extractors", "finite_bounds", "fold_extractors"]
 
 
 def extractors(bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> np.ndarray:
@@ -35,7 +35,7 @@ def extractors(bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> np.ndarray:
             particle count is one).
         comm: Communicator.
     """
-    local = np.nan_to_num(np.asarray(bounds, dtype=np.float64), nan=np.inf, posinf=1e300)
+    local = finite_bounds(bounds)
     glob = np.empty_like(local)
     comm.Allreduce(local, glob, op=MPI.MAX)
     return fold_extractors(glob, n_terms)
@@ -47,12 +47,26 @@ def fold_extractors(bounds: np.ndarray, n_terms: int) -> np.ndarray:
     The bounds must be the same on every rank (a max over all ranks of per-rank maxima of
     single quantities: a max of per-rank *sums* of maxima depends on the split).
     """
-    glob = np.nan_to_num(np.asarray(bounds, dtype=np.float64), nan=np.inf, posinf=1e300)
+    glob = finite_bounds(bounds)
     nb = max(int(n_terms), 1).bit_length()
     e_b = np.frexp(glob)[1].astype(np.int64)  # |x| < 2^e_b
     e1 = e_b + nb
-    e2 = e1 - 52 + nb
-    return np.stack([np.ldexp(1.5, e1), np.ldexp(1.5, e2)], axis=1)
+    out = np.empty((glob.size, 2))
+    out[:, 0] = np.ldexp(1.5, e1)
+    out[:, 1] = np.ldexp(1.5, e1 - 52 + nb)
+    return out
+
+
+def finite_bounds(bounds: np.ndarray) -> np.ndarray:
+    """Return a float copy of ``bounds``: NaN as inf, inf as 1e300, -inf as the lowest float.
+
+    ``np.nan_to_num``'s result, without its cost (about 20 µs) when every bound is finite,
+    as in every usual step.
+    """
+    glob = np.array(bounds, dtype=np.float64)
+    if np.isfinite(glob).all():
+        return glob
+    return np.nan_to_num(glob, nan=np.inf, posinf=1e300)
 
 
 def exact_total(values: np.ndarray, bound: float, n_terms: int, comm: MPI.Comm) -> float:

@@ -16,6 +16,8 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
+from fem_runout.exact_sum import finite_bounds
+
 __all__ = ["Box", "FoldExchange", "p2g_bounds", "p2g_bounds_of"]
 
 
@@ -143,7 +145,7 @@ def p2g_bounds_of(every: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 def _finite(local: np.ndarray) -> np.ndarray:
     """Return the maxima with NaN, inf as the largest floats; the box (-inf: none) as it is."""
-    glob = np.nan_to_num(np.array(local[:15]), nan=np.inf, posinf=1e300)
+    glob = finite_bounds(local[:15])
     glob[11:] = local[11:15]
     return glob
 

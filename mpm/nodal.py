@@ -11,7 +11,7 @@ view ``global[node_index]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -71,6 +71,7 @@ class GridSums:
     g: np.ndarray
     n_nodes: int
     index: np.ndarray
+    _located: dict = field(default_factory=dict, repr=False, compare=False)
 
     def full(self, values: np.ndarray) -> np.ndarray:
         """Global array with ``values`` at :attr:`act`, zero elsewhere."""
@@ -84,7 +85,17 @@ class GridSums:
         return GridSums(self.act[a:b], self.g[a:b], self.n_nodes, self.index[a:b])
 
     def locate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions in :attr:`act` of the global ``nodes`` that carry mass: ``(pos, which)``."""
+        """Positions in :attr:`act` of the global ``nodes`` that carry mass: ``(pos, which)``.
+
+        Kept per ``nodes`` array (a side's: the walls are located several times a step with
+        the same sums); the arrays returned must not be changed.
+        """
+        key = id(nodes)
+        if key not in self._located:
+            self._located[key] = (nodes, *self._locate(nodes))  # nodes held: its id not reused
+        return self._located[key][1:]
+
+    def _locate(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pos = np.searchsorted(self.act, nodes)
         inside = pos < self.act.size
         hit = np.zeros(nodes.size, dtype=bool)
