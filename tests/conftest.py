@@ -5,6 +5,13 @@ import os
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+if "FEM_RUNOUT_CACHE" not in os.environ:  # the tests' outline meshes: not in the user's cache
+    import atexit
+    import shutil
+    import tempfile
+
+    os.environ["FEM_RUNOUT_CACHE"] = tempfile.mkdtemp(prefix="fem_runout_test_cache_")
+    atexit.register(shutil.rmtree, os.environ["FEM_RUNOUT_CACHE"], ignore_errors=True)
 
 import pytest  # noqa: E402
 from mpi4py import MPI  # noqa: E402

@@ -140,11 +140,15 @@ def test_terrain_size_formula() -> None:
     assert np.allclose(curved[25, 80:121], 10.0, rtol=0.01)  # up to the discrete filter
 
 
-def test_same_case_same_mesh() -> None:
+def test_same_case_same_mesh(monkeypatch: pytest.MonkeyPatch) -> None:
+    from fem_runout.meshing.cache import CACHE_ENV, clear_memory
+
+    monkeypatch.setenv(CACHE_ENV, "off")  # gmsh meshes it both times
     refine = [{"kind": "line", "line": LINE, "size": 4.0, "distance": 40.0}]
     case = load_case(outline_case(refine=refine))
     arrays = []
     for _ in range(2):
+        clear_memory()
         with gmsh_session():
             build_model(case)
             tags, xyz, _ = gmsh.model.mesh.getNodes()

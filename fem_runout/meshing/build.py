@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fem_runout.meshing.cache import cached_mesh
 from fem_runout.meshing.mshfile import read_msh
 from fem_runout.meshing.outline import mesh_outline
 from fem_runout.meshing.quadmesh import GROUPS, QuadMesh, finish_mesh, to_gmsh
@@ -43,6 +44,9 @@ def rectangle_mesh(case: Case) -> QuadMesh:
 def case_mesh(case: Case) -> QuadMesh:
     """Return the checked quadrilateral mesh of a resolved case (gmsh initialized).
 
+    An outline's mesh comes from :func:`fem_runout.meshing.cache.cached_mesh` when the same
+    outline, sizes and inputs were meshed before (in this process or on disk).
+
     Raises:
         CaseError: If the outline cannot be meshed or the mesh file is refused.
         RuntimeError: If gmsh is not initialized.
@@ -52,8 +56,8 @@ def case_mesh(case: Case) -> QuadMesh:
     if not gmsh.isInitialized():
         raise RuntimeError("gmsh is not initialized: call inside fem_runout.meshing.gmsh_session()")
     d = case.domain
-    if d.kind == "outline":
-        return mesh_outline(case)
+    if d.kind == "outline":  # kept once made (fem_runout.meshing.cache)
+        return cached_mesh(case, mesh_outline)
     if d.kind == "file":
         assert d.mesh is not None
         return read_msh(case.resolve_input(d.mesh), d.default_boundary)
