@@ -218,6 +218,7 @@ def run(
     if tree is not None:
         _restore(case, solver, every, tree)
     elif not quiet:
+        _say_mesh(case, solver, comm)
         _say_released(solver, comm)
     progress = _Progress(case.time.end_time, case.name) if (not quiet and comm.rank == 0) \
         else None
@@ -312,6 +313,21 @@ class _Outputs:
             result.peak_depth = envelope["peak_depth"]
             result.peak_speed = envelope["peak_speed"]
         return result
+
+
+def _say_mesh(case: Case, solver: Solver, comm) -> None:
+    """Print an outline mesh's size and origin (made by gmsh or kept) on rank 0."""
+    from fem_runout.meshing.cache import last_origin
+
+    origin = last_origin() if comm.rank == 0 and case.domain.kind == "outline" else None
+    if origin is None:
+        return
+    cells = solver.mesh.topology.index_map(2).size_global
+    where = "" if origin.folder is None else f"; kept in {origin.folder}"
+    how = {"gmsh": f"meshed by gmsh in {origin.seconds:.1f} s{where}",
+           "disk": f"from the mesh cache {origin.folder}",
+           "process": "from this process's mesh cache"}[origin.source]
+    print(f"mesh: {cells} quadrilaterals ({how})", flush=True)
 
 
 def _say_released(solver, comm) -> None:

@@ -216,3 +216,33 @@ def test_histograms_of_members_equal_to_round_off(tmp_path):
     lo, hi = histogram_range(np.array([64.0, 64.0 - 4e-14]))
     assert lo == pytest.approx(63.68) and hi == pytest.approx(64.32)
     assert histogram_range(np.array([1.0, 2.0])) is None  # a real spread keeps numpy's own range
+
+
+def test_members_on_an_outline_mesh_mesh_it_once(tmp_path, monkeypatch):
+    import fem_runout.meshing.build as build
+    from fem_runout.meshing import cache
+
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    cache.clear_memory()
+    made = []
+
+    def counted(case):
+        made.append(case.initial.depth)
+        return mesh_outline(case)
+
+    mesh_outline = build.mesh_outline
+    monkeypatch.setattr(build, "mesh_outline", counted)
+    depths = [0.2, 0.6, 1.2]  # a lake at rest in a walled pentagon, one member per depth
+    lake = {**LAKE, "domain": {"outline": [[0, 0], [40, 0], [50, 30], [20, 45], [-5, 25]],
+                               "cell_size": 5.0, "boundary": "wall"}}
+    case_path, spec_path = _files(tmp_path, lake, {
+        "sampling": {"plan": "factorial"}, "vary": {"initial.depth": {"values": depths}},
+        "thresholds": {"depth": [0.5, 1.0]}})
+    result = run_ensemble(case_path, spec_path, out=tmp_path / "out")
+    cache.clear_memory()
+    assert result.summary["members"] == 3 and result.summary["failed"] == 0
+    assert len(made) == 1  # gmsh once, the other members from the process's cache
+    for th, expected in ((0.5, 2 / 3), (1.0, 1 / 3)):
+        p, _ = read_stack([result.out], f"probability_depth_ge_{th:g}m")
+        inside = p[np.isfinite(p)]
+        assert inside.size > 100 and np.all(inside == expected), (th, np.unique(p))

@@ -162,3 +162,24 @@ def test_a_refused_outline_is_not_kept(tmp_path: Path, disk: Path) -> None:
             with pytest.raises(CaseError):
                 mesh_cache.cached_mesh(case, refuse)
     assert len(calls) == 2 and not disk.exists()
+
+
+def test_a_run_says_where_its_mesh_came_from(tmp_path: Path, disk: Path,
+                                             capsys: pytest.CaptureFixture) -> None:
+    from fem_runout.api import run
+
+    data = outline_case(cell_size=25.0, boundary="wall")
+    data["time"] = {"end": 0.05}
+    said = []
+    for forget in (False, False, True):
+        if forget:
+            mesh_cache.clear_memory()
+        result = run(data, write=False, quiet=False)
+        said.append(next(line for line in capsys.readouterr().out.splitlines()
+                         if line.startswith("mesh:")))
+    cells = result.cells
+    assert cells > 100
+    assert said[0].startswith(f"mesh: {cells} quadrilaterals (meshed by gmsh in ")
+    assert said[0].endswith(f" s; kept in {disk})")
+    assert said[1:] == [f"mesh: {cells} quadrilaterals (from this process's mesh cache)",
+                        f"mesh: {cells} quadrilaterals (from the mesh cache {disk})"]

@@ -27,9 +27,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time
 import zipfile
 from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -41,12 +43,36 @@ from fem_runout.meshing.quadmesh import GROUPS, QuadMesh
 if TYPE_CHECKING:
     from fem_runout.config import Case
 
-__all__ = ["CACHE_ENV", "cache_dir", "cached_mesh", "clear_memory", "mesh_key"]
+__all__ = ["CACHE_ENV", "Origin", "cache_dir", "cached_mesh", "clear_memory", "last_origin",
+           "mesh_key"]
 
 #: Environment variable naming the cache folder (``off`` or ``0``: no disk cache).
 CACHE_ENV = "FEM_RUNOUT_CACHE"
 _IN_MEMORY = 4  # meshes kept in the process (an ensemble or a comparison needs one)
 _memory: OrderedDict[str, QuadMesh] = OrderedDict()
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Where :func:`cached_mesh` found its last mesh.
+
+    Attributes:
+        source: ``gmsh`` (made now), ``disk`` or ``process`` (kept).
+        seconds: Time to get it [s].
+        folder: The disk cache's folder (None: disabled).
+    """
+
+    source: str
+    seconds: float
+    folder: Path | None
+
+
+_last: list[Origin] = []
+
+
+def last_origin() -> Origin | None:
+    """Return where this process's last outline mesh came from (None: none made yet)."""
+    return _last[-1] if _last else None
 
 
 def cache_dir() -> Path | None:
@@ -143,21 +169,29 @@ def cached_mesh(case: Case, make: Callable[[Case], QuadMesh]) -> QuadMesh:
         make: The mesher (:func:`fem_runout.meshing.outline.mesh_outline`); its errors are
             not cached.
     """
+    start = time.perf_counter()
     key = mesh_key(case)
+    folder = cache_dir()
     if key in _memory:
         _memory.move_to_end(key)
+        _note("process", start, folder)
         return _memory[key]
-    folder = cache_dir()
     path = None if folder is None else folder / f"{key}.npz"
     mesh = None if path is None or not path.is_file() else _load(path)
+    source = "disk"
     if mesh is None:
-        mesh = make(case)
+        mesh, source = make(case), "gmsh"
         if path is not None:
             _store(path, mesh)
     _memory[key] = _frozen(mesh)
     while len(_memory) > _IN_MEMORY:
         _memory.popitem(last=False)
+    _note(source, start, folder)
     return mesh
+
+
+def _note(source: str, start: float, folder: Path | None) -> None:
+    _last[:] = [Origin(source, time.perf_counter() - start, folder)]
 
 
 def clear_memory() -> None:
