@@ -183,3 +183,23 @@ def test_a_run_says_where_its_mesh_came_from(tmp_path: Path, disk: Path,
     assert said[0].endswith(f" s; kept in {disk})")
     assert said[1:] == [f"mesh: {cells} quadrilaterals (from this process's mesh cache)",
                         f"mesh: {cells} quadrilaterals (from the mesh cache {disk})"]
+
+
+def test_the_disk_keeps_the_most_recently_used_meshes(tmp_path: Path, disk: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import os
+
+    monkeypatch.setattr(mesh_cache, "MAX_FILES", 2)
+    cases = [load_case(outline_case(cell_size=size)) for size in (40.0, 35.0, 30.0)]
+    calls, make = _counted()
+    with gmsh_session():
+        for i, case in enumerate(cases[:2]):
+            mesh_cache.cached_mesh(case, make)
+            path = disk / f"{mesh_cache.mesh_key(case)}.npz"
+            os.utime(path, ns=(10**18 + i, 10**18 + i))  # the first is the older
+        mesh_cache.clear_memory()
+        mesh_cache.cached_mesh(cases[0], make)  # read from the disk: now the newer
+        mesh_cache.cached_mesh(cases[2], make)  # a third: the least recently used goes
+    kept = {p.name for p in disk.glob("*.npz")}
+    assert len(calls) == 3
+    assert kept == {f"{mesh_cache.mesh_key(c)}.npz" for c in (cases[0], cases[2])}

@@ -19,7 +19,8 @@ gmsh or from the cache (tested).
 The disk cache lives in ``$FEM_RUNOUT_CACHE/meshes`` (default ``~/.cache/fem_runout``, like
 FFCx's ``~/.cache/fenics``; ``FEM_RUNOUT_CACHE=off`` disables it). A file is written whole
 under a temporary name and renamed, so concurrent runs never read half a mesh; a file that
-cannot be read or written is ignored (the mesh is made again).
+cannot be read or written is ignored (the mesh is made again). The folder keeps the
+:data:`MAX_FILES` most recently used meshes.
 """
 
 from __future__ import annotations
@@ -43,12 +44,15 @@ from fem_runout.meshing.quadmesh import GROUPS, QuadMesh
 if TYPE_CHECKING:
     from fem_runout.config import Case
 
-__all__ = ["CACHE_ENV", "Origin", "cache_dir", "cached_mesh", "clear_memory", "last_origin",
-           "mesh_key"]
+__all__ = ["CACHE_ENV", "MAX_FILES", "Origin", "cache_dir", "cached_mesh", "clear_memory",
+           "last_origin", "mesh_key"]
 
 #: Environment variable naming the cache folder (``off`` or ``0``: no disk cache).
 CACHE_ENV = "FEM_RUNOUT_CACHE"
 _IN_MEMORY = 4  # meshes kept in the process (an ensemble or a comparison needs one)
+#: Files kept on disk: beyond this the least recently used are deleted (a 20 000-cell mesh
+#: takes about 1 MB).
+MAX_FILES = 64
 _memory: OrderedDict[str, QuadMesh] = OrderedDict()
 
 
@@ -157,8 +161,25 @@ def _store(path: Path, mesh: QuadMesh) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(tmp, nodes=mesh.nodes, quads=mesh.quads, **groups)
         os.replace(tmp, path)
+        _evict(path.parent)
     except OSError:
         tmp.unlink(missing_ok=True)
+
+
+def _evict(folder: Path) -> None:
+    """Delete the least recently used meshes beyond :data:`MAX_FILES`.
+
+    By modification time, which a read from the disk renews (:func:`_touch`).
+    """
+    files = []
+    for f in folder.glob("*.npz"):
+        if ".tmp" not in f.name:
+            try:
+                files.append((f.stat().st_mtime_ns, f.name, f))
+            except OSError:  # deleted by another run meanwhile
+                continue
+    for *_, f in sorted(files)[:max(0, len(files) - MAX_FILES)]:
+        f.unlink(missing_ok=True)
 
 
 def cached_mesh(case: Case, make: Callable[[Case], QuadMesh]) -> QuadMesh:
@@ -179,6 +200,8 @@ def cached_mesh(case: Case, make: Callable[[Case], QuadMesh]) -> QuadMesh:
     path = None if folder is None else folder / f"{key}.npz"
     mesh = None if path is None or not path.is_file() else _load(path)
     source = "disk"
+    if mesh is not None:
+        _touch(path)
     if mesh is None:
         mesh, source = make(case), "gmsh"
         if path is not None:
@@ -188,6 +211,14 @@ def cached_mesh(case: Case, make: Callable[[Case], QuadMesh]) -> QuadMesh:
         _memory.popitem(last=False)
     _note(source, start, folder)
     return mesh
+
+
+def _touch(path: Path) -> None:
+    """Mark a cached file as just used (:func:`_evict` keeps the most recently used)."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
 
 
 def _note(source: str, start: float, folder: Path | None) -> None:

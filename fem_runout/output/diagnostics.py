@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -14,8 +15,9 @@ import numpy as np
 from dolfinx import fem, io
 
 from fem_runout.callbacks import flow_index
-from fem_runout.exact_sum import exact_totals
+from fem_runout.exact_sum import fold_extractors
 from fem_runout.mesh import node_coordinates
+from fem_runout.output.diagnostics_kernel import diagnostic_folds, diagnostic_maxima
 from fem_runout.output.envelopes import fold_envelopes
 from fem_runout.output.gather import gather_nodal
 
@@ -58,14 +60,12 @@ def nodal_speed(h: np.ndarray, hu: np.ndarray, hv: np.ndarray, threshold: float)
     return speed
 
 
-def _owned(solver: Solver, x: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-    """``x, m, h, hu, hv`` of a solver on its flow's owned dofs (``x``: all owned x)."""
-    if x is None:
-        x = owned_x(solver)
-    idx = flow_index(solver)
-    m = np.asarray(solver.lumped_mass, dtype=np.float64)[idx]
-    h, hu, hv = (solver.fields[k].x.array[idx].real for k in ("h", "hu", "hv"))
-    return x[idx], m, h, hu, hv
+@functools.lru_cache(maxsize=8)
+def _owned_range(n: int) -> np.ndarray:
+    """``arange(n)`` (read-only, kept: the owned dofs when the flow covers most of them)."""
+    out = np.arange(n, dtype=np.int64)
+    out.flags.writeable = False
+    return out
 
 
 def owned_x(solver: Solver) -> np.ndarray:
@@ -93,19 +93,19 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         (the sums are exact-fold sums, :func:`fem_runout.exact_sum.exact_totals`).
     """
     comm = solver.comm
-    x, m, h, hu, hv = _owned(solver, x)
-    wet = h > threshold
-    q2 = hu[wet] ** 2 + hv[wet] ** 2
-    terms = (m * h, 0.5 * density * (m[wet] * q2 / h[wet]), m[wet])
-    speed = np.sqrt(q2) / h[wet]
-    local_max = np.array([
-        *(np.abs(t).max(initial=0.0) for t in terms),
-        max(h.max(initial=0.0), 0.0) if solver.V.dofmap.index_map.size_local else -np.inf,
-        speed.max() if speed.size else 0.0,
-        x[wet].max() if speed.size else -np.inf,
-    ], dtype=np.float64)
+    if x is None:
+        x = owned_x(solver)
+    idx = flow_index(solver)
+    idx = _owned_range(idx.stop) if isinstance(idx, slice) else np.asarray(idx, dtype=np.int64)
+    mass = np.asarray(solver.lumped_mass, dtype=np.float64)
+    h, hu, hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
+    local_max = diagnostic_maxima(idx, x, mass, h, hu, hv, float(threshold), float(density),
+                                  solver.V.dofmap.index_map.size_local > 0)
     comm.Allreduce(MPI.IN_PLACE, local_max, op=MPI.MAX)
-    sums = exact_totals(terms, local_max[:3], solver.V.dofmap.index_map.size_global, comm)
+    ext = fold_extractors(local_max[:3], solver.V.dofmap.index_map.size_global)
+    folds = diagnostic_folds(idx, mass, h, hu, hv, float(threshold), float(density), ext)
+    comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
+    sums = folds[0::2] + folds[1::2]  # as exact_totals: every partial sum exact
     maxima = local_max[3:]
     return {
         "volume": float(sums[0]),
