@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["inverses", "jacobians", "q1_basis"]
+__all__ = ["inverses", "jacobians", "physical_gradients", "q1_basis"]
 
 
 def q1_basis(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -40,7 +40,24 @@ def jacobians(xc: np.ndarray, dphi: np.ndarray) -> np.ndarray:
     map, since the derivatives sum to zero, without the coordinates' magnitude).
     """
     rel = xc - xc[:, :1, :]
-    return np.einsum("cka,qkb->cqab", rel, dphi)
+    out = np.zeros((rel.shape[0], dphi.shape[0], 2, 2))
+    for k in range(4):  # einsum("cka,qkb->cqab")'s sums, in its order, without its slow path
+        out += rel[:, None, k, :, None] * dphi[None, :, k, None, :]
+    return out
+
+
+def physical_gradients(dphi: np.ndarray, inv: np.ndarray) -> np.ndarray:
+    """Physical gradients ``∂φ_k/∂x_a = Σ_b ∂φ_k/∂ξ_b ∂ξ_b/∂x_a``, (n, q, 4, 2).
+
+    ``dphi`` (q, 4, 2) reference derivatives, ``inv`` (n, q, 2, 2) inverse Jacobians. The
+    bits of ``np.einsum("qkb,cqba->cqka", dphi, inv)`` (the sum from zero, ``b = 0`` first;
+    tested), four times faster: einsum broadcasting ``dphi`` over the cells took 0.5–0.7 s
+    on avaKot's 56 502 cells, on every run.
+    """
+    out = np.zeros((inv.shape[0], dphi.shape[0], dphi.shape[1], 2))
+    for b in range(2):
+        out += dphi[None, :, :, b, None] * inv[:, :, None, b, :]
+    return out
 
 
 def inverses(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -84,3 +84,26 @@ def test_inverses_by_the_adjugate():
     inv, det = inverses(J)
     assert np.abs(np.einsum("...ab,...bc->...ac", inv, J) - np.eye(2)).max() <= 1e-14
     assert np.array_equal(det, J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])
+
+
+def test_jacobians_and_gradients_have_einsums_bits():
+    """The explicit sums give np.einsum's bits, the signs of zeros included."""
+    from fem_runout.q1 import inverses, jacobians, physical_gradients, q1_basis
+
+    rng = np.random.default_rng(7)
+    square = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    xc = np.concatenate([  # axis-aligned squares (exact zeros) and skewed cells, far out
+        5e5 + square[None] + 10.0 * rng.integers(0, 100, (50, 1, 2)),
+        3e5 + square[None] + rng.normal(0.0, 2.0, (500, 4, 2)) + 1e3 * rng.random((500, 1, 2))])
+    for pts in (rng.random((9, 2)), np.array([[0.5, 0.5]])):
+        _, dphi = q1_basis(pts)
+        rel = xc - xc[:, :1, :]
+        jac = jacobians(xc, dphi)
+        want = np.einsum("cka,qkb->cqab", rel, dphi)
+        assert np.array_equal(jac, want) and np.array_equal(np.signbit(jac), np.signbit(want))
+        inv = inverses(jac)[0]
+        grad = physical_gradients(dphi, inv)
+        want = np.einsum("qkb,cqba->cqka", dphi, inv)
+        assert np.array_equal(grad, want) and np.array_equal(np.signbit(grad),
+                                                             np.signbit(want))
+    assert np.count_nonzero(jac == 0.0) > 0  # the squares' off-diagonal zeros were compared

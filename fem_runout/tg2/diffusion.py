@@ -39,7 +39,7 @@ from fem_runout.mesh import Discretization
 from fem_runout.physics.friction import FrictionLaw
 from fem_runout.physics.rheology import Bingham
 from fem_runout.physics.slope import BedFrame, SlopeGeometry
-from fem_runout.q1 import inverses, jacobians, q1_basis
+from fem_runout.q1 import inverses, jacobians, physical_gradients, q1_basis
 from fem_runout.tg2.low_order import velocity_factor
 
 
@@ -202,7 +202,7 @@ def _stiffness_row_sums(xc: np.ndarray) -> np.ndarray:
     pts, wts = basix.make_quadrature(basix.CellType.quadrilateral, 2)
     _, dphi = q1_basis(pts)  # (q, 4, 2)
     Jinv, det = inverses(jacobians(xc, dphi))
-    grad = np.einsum("qkb,cqba->cqka", dphi, Jinv)
+    grad = physical_gradients(dphi, Jinv)
     w = wts[None, :] * np.abs(det)
     S = np.einsum("cq,cqia,cqja->cij", w, grad, grad)
     return np.abs(S).sum(axis=2)
