@@ -53,17 +53,60 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, Any]]:
 
 
 def difference(a, b) -> tuple[float, float]:
-    """(L1, L∞) of ``h_a - h_b`` on the common node grid (lumped Q1 weights)."""
+    """(L1, L∞) of ``h_a - h_b`` on the common nodes (lumped Q1 weights).
+
+    Both runs are on the same mesh (the same case), so their gathered nodes match one to one.
+    A rectangle's weights come from its node grid, any other mesh's are the runs' lumped mass.
+    """
+    from fem_runout.output import grid_shape
     from fem_runout.references.norms import l1, linf, nodal_weights
 
     d = a.h - b.h
-    return l1(d, nodal_weights(a.x, a.y)), linf(d)
+    weights = nodal_weights(a.x, a.y) if grid_shape(a.x, a.y) is not None else a.area
+    return l1(d, weights), linf(d)
 
 
-def _grid(r) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+Extent = tuple[float, float, float, float]
+
+
+def _grid(r) -> tuple[np.ndarray, Extent]:
     nx = np.unique(np.round(r.x, 9)).size
     ny = r.x.size // nx
     return r.h.reshape(ny, nx), (r.x.min(), r.x.max(), r.y.min(), r.y.max())
+
+
+def _image(r) -> tuple[np.ndarray, Extent] | None:
+    """Return the final depth as an image (rows of increasing y), or None (scatter the nodes).
+
+    A rectangle's node grid as it is; a gmsh mesh's depth as the run sampled it onto its
+    raster (``deposit_depth.tif``, NaN outside the mesh), if it wrote one.
+    """
+    from fem_runout.output import grid_shape
+
+    if grid_shape(r.x, r.y) is not None:
+        return _grid(r)
+    path = None if r.out_dir is None else Path(r.out_dir) / "deposit_depth.tif"
+    if path is None or not path.is_file():
+        return None
+    import rasterio
+
+    with rasterio.open(path) as src:
+        data = src.read(1, masked=True).astype(np.float64).filled(np.nan)[::-1]
+        b = src.bounds
+    return data, (b.left, b.right, b.bottom, b.top)
+
+
+def _panel(fig, ax, values, image, r, title, **style) -> None:
+    """Draw one map: the image, or the nodes coloured by ``values`` (a mesh without raster)."""
+    if image is not None:
+        ext = image[1]
+        aspect = "equal" if (ext[1] - ext[0]) <= 4 * (ext[3] - ext[2]) else "auto"
+        art = ax.imshow(values, origin="lower", extent=ext, aspect=aspect, **style)
+    else:
+        art = ax.scatter(r.x, r.y, c=values, s=4, marker="s", linewidths=0, **style)
+        ax.set_aspect("equal")
+    ax.set_title(title)
+    fig.colorbar(art, ax=ax, label="[m]" if "magma" in str(style.get("cmap")) else "h [m]")
 
 
 def plot_fields(results: dict[str, Any], path: Path, title: str) -> None:
@@ -77,20 +120,16 @@ def plot_fields(results: dict[str, Any], path: Path, title: str) -> None:
     FigureCanvasAgg(fig)
     axes = np.atleast_1d(fig.subplots(1, panels))
     vmax = max(float(r.h.max()) for r in results.values()) or 1.0
+    images = {name: _image(results[name]) for name in names}
     for ax, name in zip(axes, names, strict=False):
-        h, ext = _grid(results[name])
-        aspect = "equal" if (ext[1] - ext[0]) <= 4 * (ext[3] - ext[2]) else "auto"
-        im = ax.imshow(h, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis",
-                       aspect=aspect)
-        ax.set_title(f"{name}: h at t = {results[name].t:.3g} s")
-        fig.colorbar(im, ax=ax, label="h [m]")
+        r, image = results[name], images[name]
+        _panel(fig, ax, r.h if image is None else image[0], image, r,
+               f"{name}: h at t = {r.t:.3g} s", vmin=0, vmax=vmax, cmap="viridis")
     if len(names) > 1:
-        a, b = results[names[0]], results[names[1]]
-        (ha, ext), (hb, _) = _grid(a), _grid(b)
-        im = axes[-1].imshow(np.abs(ha - hb), origin="lower", extent=ext, cmap="magma",
-                             aspect=aspect)
-        axes[-1].set_title(f"|h_{names[0]} − h_{names[1]}|")
-        fig.colorbar(im, ax=axes[-1], label="[m]")
+        (a, b), (ia, ib) = (results[n] for n in names[:2]), (images[n] for n in names[:2])
+        both = ia is not None and ib is not None and ia[0].shape == ib[0].shape
+        _panel(fig, axes[-1], np.abs(ia[0] - ib[0]) if both else np.abs(a.h - b.h),
+               ia if both else None, a, f"|h_{names[0]} − h_{names[1]}|", cmap="magma")
     fig.suptitle(title)
     fig.savefig(path, dpi=100)
 

@@ -91,3 +91,44 @@ def test_two_method_report_and_difference(tmp_path):
     plot_fields(results, tmp_path / "f.png", "t")
     plot_series(results, tmp_path / "s.png", "t")
     assert (tmp_path / "f.png").stat().st_size > 10_000
+
+
+PENTAGON = {"name": "pent", "method": "tg2",
+            "domain": {"outline": [[0, 0], [40, 0], [50, 30], [20, 45], [-5, 25]],
+                       "cell_size": 2.5, "boundary": "wall"},
+            "terrain": {"elevation": "0.05 * x"},
+            "initial": {"depth": "maximum(2 - 0.05*((x-20)**2 + (y-20)**2), 0)"},
+            "material": {"density": 1000, "friction": {"law": "voellmy", "mu": 0.2,
+                                                        "xi": 500}},
+            "time": {"end": 1.0, "cfl": 0.9}, "output": {"every": 1.0, "pictures": False}}
+
+
+def test_a_gmsh_mesh_compares_on_its_own_nodes(tmp_path):
+    """An outline case: maps from the runs' rasters, the difference on the mesh's nodes."""
+    import yaml
+
+    path = tmp_path / "pent.yaml"
+    path.write_text(yaml.safe_dump(PENTAGON))
+    proc = _compare(path, "--out", tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (tmp_path / "out" / "compare_fields.png").stat().st_size > 10_000
+    line = next(x for x in (tmp_path / "out" / "compare.md").read_text().splitlines()
+                if x.startswith("Depth difference"))
+    l1 = float(line.split("L1 = ")[1].split(" ")[0])
+    linf = float(line.split("L∞ = ")[1].split(" ")[0])
+    volume = np.pi * 40.0  # the paraboloid's ½ π R² h0, R² = 40 m², h0 = 2 m
+    assert 0.0 < l1 < 2.0 * volume and 0.0 < linf < 2.0  # within what both runs hold
+
+
+def test_difference_weights_a_meshs_nodes_by_its_lumped_mass():
+    from types import SimpleNamespace
+
+    from fem_runout.compare import difference
+
+    rng = np.random.default_rng(3)
+    x, y, area = rng.random(50) * 40, rng.random(50) * 30, rng.random(50) + 0.5
+    a = SimpleNamespace(x=x, y=y, area=area, h=rng.random(50))
+    b = SimpleNamespace(x=x, y=y, area=area, h=rng.random(50))
+    l1, linf = difference(a, b)
+    assert l1 == pytest.approx(float(np.sum(area * np.abs(a.h - b.h))), rel=1e-14)
+    assert linf == float(np.abs(a.h - b.h).max())
