@@ -16,25 +16,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["P2G_COLUMNS", "flip_gather", "flip_set", "fold", "g2p_flip", "g2p_gradient",
+from fem_runout.exact_fold import fold
+
+__all__ = ["P2G_COLUMNS", "flip_gather", "flip_set", "g2p_flip", "g2p_gradient",
            "gimp_interpolate", "gradient_terms", "interpolate", "momentum_columns",
            "node_columns", "p2g", "p2g_momentum"]
 
 #: Columns of the nodal array returned by :func:`p2g`.
 P2G_COLUMNS = ("mass", "mom_x", "mom_y", "force_x", "force_y", "area", "volume")
-
-
-@numba.njit(cache=True, inline="always")
-def fold(x, e0, e1):
-    """``x`` as two folds ``(hi, lo)`` with the extractors ``e0, e1`` (:mod:`fem_runout.exact_sum`).
-
-    The kernels' helpers take and return scalars only: a helper that takes arrays costs a
-    reference-count call per array and call inside the caller's loop (numba does not prune
-    them there), which made the force pass nine times slower (session 34).
-    """
-    hi = (x + e0) - e0
-    x -= hi
-    return hi, (x + e1) - e1
 
 
 @numba.njit(cache=True, inline="always")

@@ -15,8 +15,9 @@ import math
 import numba
 import numpy as np
 
+from fem_runout.exact_fold import fold
 from mpm.forces import NO_BOUNDS, ZERO3, bed_terms, particle_bounds, particle_force, put_bounds
-from mpm.kernels import flip_gather, flip_set, fold, gradient_terms, momentum_columns, node_columns
+from mpm.kernels import flip_gather, flip_set, gradient_terms, momentum_columns, node_columns
 
 __all__ = ["g2p_flip", "g2p_gradient", "interpolate", "p2g", "p2g_momentum",
            "particle_forces", "transfer_bounds"]

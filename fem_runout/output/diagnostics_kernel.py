@@ -17,6 +17,8 @@ import math
 import numba
 import numpy as np
 
+from fem_runout.exact_fold import fold
+
 __all__ = ["diagnostic_folds", "diagnostic_maxima"]
 
 
@@ -92,17 +94,15 @@ def diagnostic_folds(idx, mass, h, hu, hv, threshold, density, ext):
     hi0 = lo0 = hi1 = lo1 = hi2 = lo2 = 0.0
     for a in idx:
         m, d = mass[a], h[a]
-        v = m * d
-        hi = (v + e0) - e0
+        hi, lo = fold(m * d, e0, f0)
         hi0 += hi
-        lo0 += ((v - hi) + f0) - f0
+        lo0 += lo
         if d > threshold:
             q2 = hu[a] * hu[a] + hv[a] * hv[a]
-            v = c * (m * q2 / d)
-            hi = (v + e1) - e1
+            hi, lo = fold(c * (m * q2 / d), e1, f1)
             hi1 += hi
-            lo1 += ((v - hi) + f1) - f1
-            hi = (m + e2) - e2
+            lo1 += lo
+            hi, lo = fold(m, e2, f2)
             hi2 += hi
-            lo2 += ((m - hi) + f2) - f2
+            lo2 += lo
     return np.array([hi0, lo0, hi1, lo1, hi2, lo2])
