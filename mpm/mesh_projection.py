@@ -1,9 +1,10 @@
 """Particle → Q1 projection on an unstructured quadrilateral mesh (lumped / consistent / FCT).
 
 The unstructured counterpart of :class:`mpm.projection.GridProjector` (same method, see its
-module docstring): lumped ``h^L = b / M_L``, consistent ``h^H = M_C^{-1} b``, blended per cell
-as in FCT, ``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``f_K = (M_L^K - M_C^K) h^H`` and
-``α_K = 0`` on the cells touching a node whose first column would be negative.
+module docstring): lumped ``h^L = b / M_L``, consistent ``h^H = M_C^{-1} b``, blended as in
+FCT by :func:`mpm.projection_blend.pair_blend` (the element antidiffusion
+``(M_L^K - M_C^K) h^H`` split into node-pair fluxes: a cell ramped to the lumped projection where
+a node undershoots, each flux limited by Zalesak's ratio of the node it takes depth from).
 
 The element matrices ``∫_K φ_a φ_b`` of the bilinear cells are computed once. ``M_C^{-1} b``
 is a Jacobi-preconditioned conjugate gradient with a matrix-free, cell-by-cell product (fixed
@@ -19,7 +20,8 @@ import numba
 import numpy as np
 
 from fem_runout.mesh import element_masses
-from mpm.projection import blend, node_cells
+from mpm.projection import node_cells
+from mpm.projection_blend import blend
 
 __all__ = ["CG_MAX_ITERATIONS", "CG_RTOL", "WINDOW_RINGS", "MeshProjector"]
 
@@ -140,12 +142,11 @@ def _pcg(ids, lc, emass, b, rtol, max_it):
 
 @numba.njit(cache=True)
 def _blend(sub, mass, ids, lc, emass, anti, rtol, max_it):
-    """Project a window's sums: ``(h, FCT passes, CG iterations)``, ``h[:, 0] >= 0``."""
+    """Project a window's sums: ``(h, limited nodes, CG iterations)``, ``h[:, 0] >= 0``."""
     high, its = _pcg(ids, lc, emass, sub, rtol, max_it)
-    offsets, adj = node_cells(lc, sub.shape[0])
-    res, passes = blend(sub, mass, high, lc, anti, ids, offsets, adj, np.arange(lc.shape[0]),
-                        np.arange(sub.shape[0]))
-    return res, passes, its
+    res, limited = blend(sub, mass, high, lc, anti, ids, np.arange(lc.shape[0]),
+                         np.arange(sub.shape[0]))
+    return res, limited, its
 
 
 class MeshProjector:
@@ -159,7 +160,7 @@ class MeshProjector:
     Attributes:
         element_mass: (n_cells, 4, 4) consistent element mass matrices.
         lumped_mass: (n_nodes,) ``∫ φ_i`` (element row sums added in cell order).
-        iterations: FCT passes of the last projection.
+        limited: Nodes whose outgoing antidiffusion the last projection limited.
         solver_iterations: CG iterations of the last consistent solve (max over columns).
     """
 
@@ -174,7 +175,7 @@ class MeshProjector:
         self._anti = -self.element_mass.copy()
         rows = np.arange(4)
         self._anti[:, rows, rows] += self.element_mass.sum(axis=2)
-        self.iterations = 0
+        self.limited = 0
         self.solver_iterations = 0
 
     def window(self, nodes: np.ndarray) -> np.ndarray:
@@ -206,7 +207,7 @@ class MeshProjector:
         out = np.zeros(b.shape)
         nz = np.flatnonzero(b[:, 0])
         if nz.size == 0:
-            self.iterations = self.solver_iterations = 0
+            self.limited = self.solver_iterations = 0
             return out
         index = self.window(nz)
         out[index] = self._blend(index, np.ascontiguousarray(b[index], dtype=float))
@@ -221,7 +222,7 @@ class MeshProjector:
             zero elsewhere).
         """
         if nodes.size == 0:
-            self.iterations = self.solver_iterations = 0
+            self.limited = self.solver_iterations = 0
             return np.zeros(0, dtype=np.int64), np.zeros(0)
         index = self.window(nodes)
         sub = np.zeros((index.size, 1))
@@ -229,9 +230,9 @@ class MeshProjector:
         return index, self._blend(index, sub)[:, 0]
 
     def _blend(self, index: np.ndarray, sub: np.ndarray) -> np.ndarray:
-        """Projection of (n, k) sums on the window ``index``; sets the iteration counts."""
+        """Projection of (n, k) sums on the window ``index``; sets the counts."""
         ids, lc = self._window_cells(index)
-        res, self.iterations, self.solver_iterations = _blend(
+        res, self.limited, self.solver_iterations = _blend(
             sub, self.lumped_mass[index], ids, lc, self.element_mass, self._anti, CG_RTOL,
             CG_MAX_ITERATIONS)
         return res

@@ -9,13 +9,15 @@ projections of the particle volume spread over the particle domains (GIMP weight
 * high order (consistent L2): ``M_C h^H = b`` — exact for a nodal field sampled by particles
   at Gauss points (lake at rest to round-off), but it can undershoot at fronts.
 
-They are blended per cell as in flux-corrected transport: ``h = h^L + M_L^{-1} Σ_K α_K f_K``
-with the element antidiffusion ``f_K = (M_L^K - M_C^K) h^H`` (``Σ_i f_{K,i} = 0``, so any
-``α_K`` conserves ``Σ_i M_i h_i = Σ_p V_p`` exactly) and ``α_K = 1`` except in the cells
-touching a node that would get a negative depth, where ``α_K = 0`` (repeated until no node is
-negative; a cell switched off subtracts its ``f_K`` again, so a pass costs only the cells it
-switches off). Further columns (if any) use the same ``α_K``. The solver projects ``h`` this way
-and writes ``hu = h v̄`` with the mass-averaged particle velocity ``v̄_i = Σ m_p v_p S_ip / M_i``
+They are blended as in flux-corrected transport (:func:`mpm.projection_blend.pair_blend`): the
+element antidiffusion ``f_K = (M_L^K - M_C^K) h^H`` is split into node-pair fluxes
+``(M_C^K)_ab (h^H_a - h^H_b)``; a cell ramps to the lumped projection as one of its nodes'
+consistent depth undershoots zero (by :data:`mpm.projection_blend.RAMP` of the cell's depth),
+and each flux is limited by Zalesak's ratio of the node it takes depth from. So ``h >= 0``,
+``Σ_i M_i h_i = Σ_p V_p`` exactly, ``h = h^H`` wherever ``h^H >= 0`` everywhere, and the result
+is continuous in the particles' data. Further columns (if any) use their pair's factors. The
+solver projects ``h`` this way and writes ``hu = h v̄`` with the mass-averaged particle velocity
+``v̄_i = Σ m_p v_p S_ip / M_i``
 (bounded by the particle velocities, so the output speed never exceeds the particles').
 
 On the structured grid the consistent mass matrix is a tensor product, ``M_C = M_y ⊗ M_x``
@@ -32,9 +34,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mpm.projection_blend import blend
 from mpm.projection_support import consistent, consistent_on_support, row_spans, support_cells
 
-__all__ = ["GridProjector", "blend", "fct_blend", "node_cells", "tridiagonal_mass_solve"]
+__all__ = ["GridProjector", "node_cells", "tridiagonal_mass_solve"]
 
 #: Element mass matrix of a rectangle over |K| (basix dof order (0,0), (1,0), (0,1), (1,1)).
 _MASS_REF = np.array([[4, 2, 2, 1], [2, 4, 1, 2], [2, 1, 4, 2], [1, 2, 2, 4]]) / 36.0
@@ -70,24 +73,6 @@ def tridiagonal_mass_solve(rhs, first_end=True, last_end=True):
     return out
 
 
-@numba.njit(cache=True, inline="always")
-def _add_antidiffusion(acc, cells, mats, e, high, c, sign):
-    """``acc += sign f_K`` for cell ``c``, ``f_K = (M_L^K - M_C^K) high`` (fixed order).
-
-    ``mats[e]`` is the cell's matrix ``M_L^K - M_C^K``.
-    """
-    for m in range(high.shape[1]):
-        h0, h1 = high[cells[c, 0], m], high[cells[c, 1], m]
-        h2, h3 = high[cells[c, 2], m], high[cells[c, 3], m]
-        for q in range(4):
-            f = (mats[e, q, 0] * h0 + mats[e, q, 1] * h1 + mats[e, q, 2] * h2
-                 + mats[e, q, 3] * h3)
-            if sign > 0.0:
-                acc[cells[c, q], m] += f
-            else:
-                acc[cells[c, q], m] -= f
-
-
 @numba.njit(cache=True)
 def node_cells(cells, n_nodes):
     """CSR node → cell adjacency ``(offsets, adj)``, each node's cells in increasing order."""
@@ -108,115 +93,23 @@ def node_cells(cells, n_nodes):
 
 
 @numba.njit(cache=True)
-def fct_blend(cells, mats, ids, low, high, mass, tol, offsets, adj, start, nodes):
-    """``h = h^L + M_L^{-1} Σ_K α_K f_K`` with ``α_K = 0`` on cells touching a negative node.
-
-    The element antidiffusion is ``f_K = (M_L^K - M_C^K) high``. A pass finds
-    the nodes whose first column is below ``-tol`` and switches their cells off (their
-    ``f_K`` subtracted again); the next pass looks only at the nodes of the cells it switched
-    off (no other node changed), so a pass costs only its cells. Used by both projectors.
-
-    Args:
-        cells: (n_cells, 4) window-local nodes of the window's cells.
-        mats: (m, 4, 4) the matrices ``M_L^K - M_C^K``; cell ``c`` uses ``mats[ids[c]]``.
-        ids: (n_cells,) matrix of each cell.
-        low: (n, k) low-order (lumped) projection.
-        high: (n, k) high-order (consistent) projection.
-        mass: (n,) lumped mass.
-        tol: Depth below which a node is negative.
-        offsets: Node → cell adjacency of ``cells`` (:func:`node_cells`).
-        adj: Its cells.
-        start: The cells whose ``f_K`` may be nonzero, increasing (all cells but those whose
-            nodes all have ``high = 0``).
-        nodes: The nodes of those cells, increasing (``h = 0`` elsewhere).
-
-    Returns:
-        ``(h, passes)``: (n, k) blended fields and the number of passes.
-    """
-    n_cells, n, k = cells.shape[0], low.shape[0], low.shape[1]
-    acc = np.zeros(low.shape)
-    for c in start:
-        _add_antidiffusion(acc, cells, mats, ids[c], high, c, 1.0)
-    alpha = np.ones(n_cells, dtype=np.bool_)
-    cand, n_cand = np.empty(n, dtype=np.int64), nodes.size
-    cand[:n_cand] = nodes
-    seen = np.zeros(n, dtype=np.bool_)
-    bad = np.empty(n, dtype=np.int64)
-    passes = 0
-    while True:
-        passes += 1
-        n_bad = 0
-        for t in range(n_cand):
-            a = cand[t]
-            if low[a, 0] + acc[a, 0] / mass[a] < -tol:
-                bad[n_bad] = a
-                n_bad += 1
-        n_next = 0
-        for t in range(n_bad):
-            for e in range(offsets[bad[t]], offsets[bad[t] + 1]):
-                c = adj[e]
-                if not alpha[c]:
-                    continue
-                alpha[c] = False
-                _add_antidiffusion(acc, cells, mats, ids[c], high, c, -1.0)
-                for q in range(4):
-                    node = cells[c, q]
-                    if not seen[node]:
-                        seen[node] = True
-                        cand[n_next] = node
-                        n_next += 1
-        if n_next == 0:
-            break
-        for t in range(n_next):
-            seen[cand[t]] = False
-        n_cand = n_next
-    out = np.zeros(low.shape)
-    for a in nodes:
-        for m in range(k):
-            out[a, m] = low[a, m] + acc[a, m] / mass[a]
-    return out, passes
-
-
-@numba.njit(cache=True)
-def _blend(sub, mass, cells, matrix, wy, wx, ends, area, offsets, adj):
-    """Project a window's sums (module docstring): ``(h, passes)``, ``h[:, 0] >= 0``."""
+def _blend(sub, mass, cells, matrix, wy, wx, ends, area):
+    """Project a window's sums (module docstring): ``(h, limited)``, ``h[:, 0] >= 0``."""
     high = consistent(sub, wy, wx, ends, area)
     ids = np.zeros(cells.shape[0], dtype=np.int64)
-    return blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj,
+    return blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids,
                  np.arange(cells.shape[0]), np.arange(sub.shape[0]))
 
 
 @numba.njit(cache=True)
-def _blend_on_support(sub, mass, cells, matrix, wy, wx, ends, area, offsets, adj, rows, cols):
-    """:func:`_blend` on the flow's support: ``(h, touched nodes, passes)``."""
+def _blend_on_support(sub, mass, cells, matrix, wy, wx, ends, area, rows, cols):
+    """:func:`_blend` on the flow's support: ``(h, touched nodes, limited)``."""
     lo, hi = row_spans(rows, cols, wy)
     high, clo, chi = consistent_on_support(sub, wy, wx, ends, area, lo, hi, WINDOW_MARGIN)
     start, nodes = support_cells(clo, chi, wy, wx)
     ids = np.zeros(cells.shape[0], dtype=np.int64)
-    res, passes = blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, offsets, adj,
-                        start, nodes)
-    return res, nodes, passes
-
-
-@numba.njit(cache=True)
-def blend(sub, mass, high, cells, mats, ids, offsets, adj, start, nodes):
-    """Blend the lumped projection ``sub / mass`` with ``high`` (:func:`fct_blend`), ``h >= 0``.
-
-    Returns ``(h, passes)`` (the arguments as :func:`fct_blend`'s; negatives of round-off
-    size, below ``1e-13`` of the largest lumped depth, count as zero; ``sub`` is zero off
-    ``nodes``).
-    """
-    low = np.zeros(sub.shape)
-    top = 0.0
-    for a in nodes:
-        for m in range(sub.shape[1]):
-            low[a, m] = sub[a, m] / mass[a]
-        top = max(top, abs(low[a, 0]))
-    res, passes = fct_blend(cells, mats, ids, low, high, mass, 1e-13 * top, offsets, adj,
-                            start, nodes)
-    for a in nodes:
-        res[a, 0] = max(res[a, 0], 0.0)
-    return res, passes
+    res, limited = blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, start, nodes)
+    return res, nodes, limited
 
 
 #: Nodes added around the nodes with particle sums when projecting on a window of the grid.
@@ -247,7 +140,7 @@ class GridProjector:
         lumped = np.zeros((ny + 1) * (nx + 1))
         np.add.at(lumped, self.cells.ravel(), 0.25 * self.area)
         self.lumped_mass = lumped
-        self.iterations = 0
+        self.limited = 0
         self._windows: dict[tuple[int, int, int, int], tuple[np.ndarray, ...]] = {}
 
     def consistent(self, b: np.ndarray, window: tuple[int, int, int, int] | None = None
@@ -304,21 +197,21 @@ class GridProjector:
         wy, wx = j1 - j0, i1 - i0
         sub = np.zeros((wy * wx, 1))
         sub[(j - j0) * wx + (i - i0), 0] = values
-        index, cells, offsets, adj = self._window_arrays(window)
+        index, cells = self._window_arrays(window)
         ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
-        res, touched, self.iterations = _blend_on_support(
-            sub, self.lumped_mass[index], cells, self.matrix, wy, wx, ends, self.area, offsets,
-            adj, j - j0, i - i0)
+        res, touched, self.limited = _blend_on_support(
+            sub, self.lumped_mass[index], cells, self.matrix, wy, wx, ends, self.area,
+            j - j0, i - i0)
         return index[touched], res[touched, 0]
 
     def _blend(self, sub: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
-        """Projection of a window's sums (row-major, (n, k)); sets :attr:`iterations`."""
+        """Projection of a window's sums (row-major, (n, k)); sets :attr:`limited`."""
         ny1, nx1 = self.shape
         j0, j1, i0, i1 = window
-        index, cells, offsets, adj = self._window_arrays(window)
+        index, cells = self._window_arrays(window)
         ends = np.array([i0 == 0, i1 == nx1, j0 == 0, j1 == ny1])
-        res, self.iterations = _blend(sub, self.lumped_mass[index], cells, self.matrix,
-                                      j1 - j0, i1 - i0, ends, self.area, offsets, adj)
+        res, self.limited = _blend(sub, self.lumped_mass[index], cells, self.matrix,
+                                   j1 - j0, i1 - i0, ends, self.area)
         return res
 
     def window(self, weights: np.ndarray) -> tuple[int, int, int, int] | None:
@@ -338,7 +231,7 @@ class GridProjector:
         return lo_j, hi_j, lo_i, hi_i
 
     def _window_arrays(self, window: tuple[int, int, int, int]) -> tuple[np.ndarray, ...]:
-        """Global nodes (row-major), window-local cells and their node → cell adjacency."""
+        """Global nodes (row-major) and window-local cells of a window."""
         if window not in self._windows:
             j0, j1, i0, i1 = window
             nx1 = self.shape[1]
@@ -347,7 +240,7 @@ class GridProjector:
             if len(self._windows) > 64:
                 self._windows.clear()
             cells = _grid_cells(i1 - i0 - 1, j1 - j0 - 1)
-            self._windows[window] = (index, cells, *node_cells(cells, index.size))
+            self._windows[window] = (index, cells)
         return self._windows[window]
 
 

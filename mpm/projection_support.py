@@ -12,7 +12,7 @@ Here each row is solved only on its span of nodes with sums widened by the margi
 column only on the rows within the margin of a span, counted as ``|Δi| + |Δj|`` (a span
 reached at ``d`` columns adds ``margin - d`` rows on each side): the same truncation as the
 window's, ``0.27^margin``, at the margin of the flow instead of its box. The blend
-(:func:`mpm.projection.fct_blend`) then visits only the cells touching that support, and the
+(:func:`mpm.projection_blend.pair_blend`) then visits only the cells touching that support, and the
 result is returned on the nodes of those cells, zero elsewhere. The two projections differ
 by the truncation, about ``1e-14`` of the largest depth (tested). On avaKot's 10 m grid the
 support has 0.6 times the window's nodes and the projection costs 0.85 ms per step instead
