@@ -283,10 +283,7 @@ class _Outputs:
             if case.output.pictures:
                 self.callbacks.append(Pictures(out, case.name, self.recorder, self.peaks,
                                                threshold=thr))
-            if methods.get(case.method).particles:
-                from mpm.output import ParticleWriter
-
-                self.callbacks.append(ParticleWriter(out))
+            self.callbacks += methods.get(case.method).output_callbacks(out)
         self.callbacks.append(self.hazard)
 
     def result(self, case: Case, runner, info, comm) -> RunResult:

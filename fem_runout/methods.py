@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -34,7 +35,9 @@ class Method:
         name: Key in case files (``method: <name>``) and on the command line.
         display: Name in reports, pictures and tables.
         builder: ``"module:function"``; the function is ``(case, comm) -> Solver``.
-        particles: The method carries material points (particle output, particle counts).
+        particles: The method carries material points (particle counts).
+        outputs: Output callbacks of the method's own, as ``"module:Class"``; each class is
+            called with the output folder (imported only when a run writes one).
         rheology: The method supports an internal rheology (``material.rheology``).
         unstructured: The method runs on gmsh meshes (``domain.outline``, ``domain.mesh``),
             not only on the rectangle's grid.
@@ -51,6 +54,7 @@ class Method:
     display: str
     builder: str
     particles: bool = False
+    outputs: tuple[str, ...] = ()
     rheology: bool = True
     unstructured: bool = True
     step_bounds: bool = False
@@ -63,6 +67,14 @@ class Method:
         module, name = self.builder.split(":")
         factory: Callable[..., Solver] = getattr(importlib.import_module(module), name)
         return factory(case, comm)
+
+    def output_callbacks(self, out_dir: Path) -> list[Any]:
+        """Return the method's own output callbacks (:attr:`outputs`) for ``out_dir``."""
+        made = []
+        for spec in self.outputs:
+            module, name = spec.split(":")
+            made.append(getattr(importlib.import_module(module), name)(out_dir))
+        return made
 
 
 #: name -> Method, in registration order (the first is the default).
@@ -111,6 +123,7 @@ register(Method(
     display="DAMPM",
     builder="mpm.build:build_mpm",
     particles=True,
+    outputs=("mpm.output:ParticleWriter",),
     description="depth-averaged material point method (seed §3.2)",
     paper={"front": {5.5: 96.2, 11.0: 239.2},
            "lake": {"h": ("1.26e-12", "1.26e-14"), "hu": ("1.08e-13", "3.57e-14"),

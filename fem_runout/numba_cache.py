@@ -13,8 +13,8 @@ gets a fingerprint, the SHA-256 of its source, of the numba-using modules it imp
 any of these import directly (their constants are compiled in); where a fingerprint differs
 from the one recorded with the cache (``__pycache__/numba_dependencies.json``), that module's
 cache files are removed and numba compiles it again. ``fem_runout/__init__`` runs it, for
-``mpm`` too (every entry point imports ``fem_runout`` first, and ``mpm``'s modules import
-it). It reads about 150 small files (about 30 ms). Errors (a read-only install, a race
+``mpm`` too, and ``mpm/__init__`` calls it as well (a script may import an ``mpm`` module
+alone). It reads about 150 small files (about 30 ms). Errors (a read-only install, a race
 between MPI ranks deleting the same file) are ignored: the worst case is a recompilation.
 Caches that numba keeps outside ``__pycache__`` (``NUMBA_CACHE_DIR``, or a read-only tree)
 are not covered.

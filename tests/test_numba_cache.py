@@ -83,3 +83,15 @@ def test_an_edited_helper_is_recompiled_into_the_cached_kernel(tmp_path: Path) -
     assert _run(tmp_path, check=True) == 12.5
     assert _run(tmp_path, check=True) == 12.5  # and cached again: nothing more removed
     assert invalidate_stale({"pkg": pkg}) == []
+
+
+def test_importing_an_mpm_module_alone_checks_the_cache() -> None:
+    """``mpm``'s kernels compile in other modules (``mpm.projection`` the blend of
+    ``mpm.projection_blend``): importing any mpm module runs the invalidation, which
+    ``fem_runout``'s import does. Found when a script importing ``mpm.projection`` alone kept
+    an edited constant's former value."""
+    script = ("import sys; import mpm.projection; "
+              "print('fem_runout.numba_cache' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split()[-1] == "True"
