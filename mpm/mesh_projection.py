@@ -142,7 +142,7 @@ def _pcg(ids, lc, emass, b, rtol, max_it):
 
 @numba.njit(cache=True)
 def _blend(sub, mass, ids, lc, emass, anti, rtol, max_it):
-    """Project a window's sums: ``(h, limited nodes, CG iterations)``, ``h[:, 0] >= 0``."""
+    """Project a window's sums: ``(h, reduced cells, CG iterations)``, ``h[:, 0] >= 0``."""
     high, its = _pcg(ids, lc, emass, sub, rtol, max_it)
     res, limited = blend(sub, mass, high, lc, anti, ids, np.arange(lc.shape[0]),
                          np.arange(sub.shape[0]))
@@ -160,7 +160,7 @@ class MeshProjector:
     Attributes:
         element_mass: (n_cells, 4, 4) consistent element mass matrices.
         lumped_mass: (n_nodes,) ``∫ φ_i`` (element row sums added in cell order).
-        limited: Nodes whose outgoing antidiffusion the last projection limited.
+        limited: Cells whose antidiffusion the last projection reduced (ramped or limited).
         solver_iterations: CG iterations of the last consistent solve (max over columns).
     """
 
