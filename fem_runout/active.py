@@ -60,6 +60,15 @@ def _wet_inside(q, rows, inner):
 
 
 @numba.njit(cache=True)
+def _deep_inside(h, rows, inner):
+    """Whether every row with ``h > 0`` is at a node where ``inner`` holds."""
+    for k in range(h.shape[0]):
+        if h[k] > 0.0 and not inner[rows[k]]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
 def _mark_cells(offsets, around, flagged, mark):
     """``mark[k] = True`` for every cell around a node of ``flagged``."""
     for j in flagged:
@@ -106,25 +115,40 @@ class ActiveSet:
         """Number of active local cells."""
         return int(self.cells.size)
 
-    def update(self, q: np.ndarray, nodes: np.ndarray | None = None) -> bool:
+    def update(self, q: np.ndarray, nodes: np.ndarray | None = None,
+               inside: bool | None = None) -> bool:
         """Rebuild the set if the flow nears its edge (collective).
 
         Args:
             q: (n_nodes_local, 3) state, or its rows at ``nodes`` (the flow is exactly zero
                 elsewhere).
             nodes: Local nodes of the rows of ``q`` (default: all).
+            inside: The test's answer over all ranks if the caller has it
+                (:meth:`deep_inside` reduced with a message of its own); None: tested here,
+                with one reduction.
 
         Returns:
             True when the set was rebuilt.
         """
         rows = np.arange(q.shape[0]) if nodes is None else nodes
-        inside = self.inner is not None and _wet_inside(q, rows, self.inner)
-        if self.disc.comm.allreduce(inside, op=MPI.LAND):
+        if inside is None:
+            local = self.inner is not None and _wet_inside(q, rows, self.inner)
+            inside = self.disc.comm.allreduce(local, op=MPI.LAND)
+        if inside:
             return False
         wet = np.zeros(self.disc.coords.shape[0])
         wet[rows[np.any(q != 0.0, axis=1)]] = 1.0
         self.rebuild(wet)
         return True
+
+    def deep_inside(self, h: np.ndarray) -> bool:
+        """Whether every node of the set with ``h > 0`` lies within the inner hops (local).
+
+        ``h`` is compact (row ``k`` at node ``nodes[k]``). Where the momenta vanish with the
+        depth, as after a transport step (:func:`fem_runout.tg2.compact.settle`), this is
+        :meth:`update`'s test on this rank (a state with a negative depth stops the run).
+        """
+        return self.inner is not None and _deep_inside(h, self.nodes, self.inner)
 
     def rebuild(self, wet: np.ndarray) -> None:
         """Build the set around the local nodes where ``wet > 0`` (collective).

@@ -206,3 +206,41 @@ def test_the_active_set_gives_the_same_bits_as_the_whole_mesh():
     assert on.peak_depth[on.x == on.x.max()].max() > 0.0  # the front crossed the strip
     for key in ("h", "hu", "hv", "peak_depth", "peak_speed"):
         assert np.array_equal(getattr(on, key), getattr(off, key)), key
+
+
+def test_the_active_set_test_rides_with_the_steps_last_message():
+    """The set's edge test of a step's new state travels in the step's last exchange.
+
+    The test is made on the new depth (after a step the momenta vanish with the depth, and
+    friction keeps them so): a solver that tests in every low-order pass with a reduction of
+    its own takes the same decisions (rebuilds) and steps to the bit, and the carried test
+    saves that reduction, two a split step (a rebuild's decision needs none either).
+    """
+    from tests.counting_comm import CountingComm
+
+    c = case("hemisphere", "domain.cells=[40,40]", "material.friction.law=voellmy",
+             "material.friction.mu=0.2", "material.friction.xi=500")
+    carried, tested = (build_tg2(c, COMM) for _ in range(2))
+    own = tested.transport._low_order_pass
+
+    def pass_with_own_test():
+        tested.transport._inside = None  # the former way: the pass tests and reduces
+        own()
+
+    tested.transport._low_order_pass = pass_with_own_test
+    counts = []
+    for solver in (carried, tested):
+        solver.health()  # the first pass, on the state set at the start
+        counting = CountingComm(COMM)
+        solver.comm = solver.disc.comm = counting
+        for _ in range(25):
+            solver.advance(0.9 * solver.stable_dt())
+            assert solver.health() is None
+        counts.append(counting.calls["allreduce"])
+    for name in ("h", "hu", "hv"):
+        assert np.array_equal(carried.fields[name].x.array, tested.fields[name].x.array), name
+    rebuilds = carried.transport.active.rebuilds
+    print(f"{rebuilds} rebuilds; allreduce calls in 25 steps: {counts[0]} carried, "
+          f"{counts[1]} tested in the pass")
+    assert rebuilds == tested.transport.active.rebuilds >= 4
+    assert counts[0] == 0 and counts[1] >= 2 * 25  # two passes a step (more if it splits)

@@ -118,12 +118,16 @@ class TG2Solver:
         return t.state() if nodes is None else t.state_on(nodes)
 
     def _set_state(self, nodes: np.ndarray | None, state: np.ndarray) -> None:
-        """Set the state at ``nodes`` (None: every local node)."""
+        """Set the state at ``nodes`` (None: every local node) after a friction step.
+
+        The callers change the momenta only, and friction keeps them zero where the node is
+        dry: the transport's active-set test still holds (``depth_kept``).
+        """
         t = self.transport
         if nodes is None:
             t.set_state(state)
         else:
-            t.set_state_on(nodes, state)
+            t.set_state_on(nodes, state, depth_kept=True)
 
     def _unused_capacity(self, state: np.ndarray, dt: float, nodes: np.ndarray | None,
                          bed: BedFrame | None = None) -> np.ndarray | None:

@@ -113,6 +113,9 @@ class Transport:
         self._fresh = False  # low-order rates of the current state are cached
         self._dt = 0.0  # the step being taken
         self._anywhere = True  # the state was set on every node (not just the set's)
+        #: the active set's test of the state, over the ranks, and the set it was made on
+        #: (sent with the step's last exchange, :meth:`_finalise`; None: test in the pass)
+        self._inside: tuple[bool, int] | None = None
         self._sums = np.empty((0, 4))  # nodal sums of the low-order rates and capacities
         self._active_key, self._on = -1, {}
 
@@ -137,17 +140,25 @@ class Transport:
         return gather_state(self._h, self._hu, self._hv,
                              np.asarray(nodes), np.empty((len(nodes), 3)))
 
-    def set_state_on(self, nodes: np.ndarray, q: np.ndarray) -> None:
-        """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values)."""
+    def set_state_on(self, nodes: np.ndarray, q: np.ndarray, depth_kept: bool = False) -> None:
+        """Set (h, hu, hv) at the local nodes ``nodes`` (the others keep their values).
+
+        ``depth_kept``: the depth is that of the state the step left, and the momenta are
+        still zero where it is (a node-wise friction step): the active set's test sent with
+        that step holds for the new state.
+        """
         scatter_state(self._h, self._hu, self._hv, np.asarray(nodes),
                        np.asarray(q, dtype=np.float64))
         self._fresh = False
+        if not depth_kept:
+            self._inside = None
 
     def set_state(self, q: np.ndarray) -> None:
         """Set (h, hu, hv) from a (n_nodes_local, 3) array (ghosts included)."""
         self._h[:], self._hu[:], self._hv[:] = q[:, 0], q[:, 1], q[:, 2]
         self._fresh = False
         self._anywhere = True
+        self._inside = None
 
     # -- time step ---------------------------------------------------------------------------
     def stable_dt(self, with_slope: bool = False) -> float | tuple[float, float]:
@@ -215,10 +226,14 @@ class Transport:
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L and capacities of the state, on the active set."""
         if self.active_set:  # dry cells give exact zeros: visit the active ones only
+            known = self._inside
             if self._anywhere:  # set by set_state: the flow may be anywhere
                 self.active.update(self.state())
-            else:  # the step wrote the set's nodes only
-                self.active.update(self.state_on(self.active.nodes), self.active.nodes)
+            elif known is None or known[1] != self.active.rebuilds or not known[0]:
+                # the step wrote the set's nodes only; test here unless the step's test holds
+                inside = known[0] if known is not None and known[1] == self.active.rebuilds \
+                    else None
+                self.active.update(self.state_on(self.active.nodes), self.active.nodes, inside)
             self._anywhere = False
         on = self._arrays()
         nodes = on["nodes"]
@@ -293,8 +308,9 @@ class Transport:
             corr = a.cell_sum(aec)
         q_new = new_state(q_low, corr, m)
         bounds.bound_speed(q_low, q_new, ext[-1], gn)
-        self._finalise(q_new, q0, u, m)
+        inside = self._finalise(q_new, q0, u, m)
         self.set_state_on(nodes, q_new)
+        self._inside = (inside, a.rebuilds)
 
     # -- pieces ------------------------------------------------------------------------------
     def _boundary_flux(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -325,13 +341,15 @@ class Transport:
         a = self.active
         return bounds.patch_speed_max(a.compact_cells("cells"), q_low, z, self.g, speed, gn)
 
-    def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray, m: np.ndarray) -> None:
+    def _finalise(self, q: np.ndarray, q0: np.ndarray, u: np.ndarray, m: np.ndarray) -> bool:
         """Walls: zero normal momentum; films dry; thin layers: damped momentum; bookkeeping.
 
         ``q`` (new), ``q0`` and ``u`` (start of the step) and the lumped masses ``m`` hold the
         active set's nodes (compact); the others are exactly dry. Films thinner than the dry
         tolerance dry out continuously (:func:`.compact.dry_films`), their volume counted in
-        :attr:`dried_volume`.
+        :attr:`dried_volume`. Returns the active set's test of the new state over the ranks
+        (:meth:`ActiveSet.deep_inside`: after :func:`.compact.settle` the momenta are zero
+        wherever the depth is not positive), sent in this step's last message.
         """
         a = self.active
         sides = a.sides()
@@ -349,12 +367,14 @@ class Transport:
                 n = side.normal[own]
                 un = np.maximum(u[0, i] * n[:, 0] + u[1, i] * n[:, 1], 0.0)
                 out += float(np.sum(side.weight[own] * q0[i, 0] * un))
-        # one exchange: the largest depth (the same threshold on any partition), the outflow
-        # and the dried volume
+        inside = self.active_set and a.deep_inside(q[:, 0])
+        # one exchange: the largest depth (the same threshold on any partition), the outflow,
+        # the dried volume and the active set's test of the next pass
         comm = self.disc.comm
-        every = np.empty((comm.size, 3))
-        comm.Allgather(np.array([local, out, dried]), every)
+        every = np.empty((comm.size, 4))
+        comm.Allgather(np.array([local, out, dried, 1.0 if inside else 0.0]), every)
         hmax = float(every[:, 0].max())
         self.outflow_volume += self._dt * sum(every[:, 1].tolist())  # in rank order
         self.dried_volume += sum(every[:, 2].tolist())
         settle(q, -1e-13 * max(hmax, 1e-300), self.kappa, self.kappa**2)
+        return bool(every[:, 3].min() > 0.0)
