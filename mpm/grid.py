@@ -66,9 +66,13 @@ def bilinear_basis(xi, eta, dx, dy):
 
 
 #: Cost of a cell holding particles in the ranks' balance, in particles
-#: (:func:`mpm.migrate.balanced_destinations`): the work of its nodes. Measured on avaKot
-#: (DAMPM, 2 ranks): about 1.6 µs per touched node and step against 0.41 µs per particle.
-CELL_COST = 4
+#: (:func:`mpm.migrate.balanced_destinations`): the work of its nodes. Session 40 measured
+#: the kernels alone on avaKot (DAMPM, 2 ranks): about 1.6 µs per touched node and step
+#: against 0.41 µs per particle, a ratio of 4. With 4 the rank holding the spread flow did
+#: -1 … +36 % (mean +18 %) more of the step's work between the collectives than the other
+#: (timed phase by phase, five runs); with 10, -6 … +8 % (mean +0.7 %): the nodes also cost
+#: outside the kernels (session 50, docs/performance.md).
+CELL_COST = 10
 #: No open side: :func:`_displace` keeps every point inside the rectangle.
 _WALLS = np.zeros(4, dtype=np.bool_)
 

@@ -40,10 +40,11 @@ def test_a_cell_holding_particles_adds_its_nodes_cost_to_the_split():
         # every rank's cost is half the total to within one cell's (a front cell: 40 + cost)
         assert abs(cost - total / 2) <= 40 + unit_cost
     # counts alone split the particles in half: the 400 margin cells and 15 of the front's
-    # (1 000 particles, 415 cells); with 4 per cell (2 000 + 4 x 440 = 3 760, half 1 880) the
-    # first 376 margin cells (5 each) cost half: 376 particles, the other rank 1 624
+    # (1 000 particles, 415 cells); with 10 per cell (2 000 + 10 x 440 = 6 400, half 3 200)
+    # the first 291 margin cells (11 each; the 291st's middle at 3 195.5) cost half: 291
+    # particles, the other rank 1 709
     by_count = balanced_destinations(_grid(0, 1000), particles)
     by_cost = balanced_destinations(_grid(CELL_COST, 1000), particles)
-    assert CELL_COST == 4
+    assert CELL_COST == 10
     assert np.count_nonzero(by_count == 0) == 1000
-    assert np.count_nonzero(by_cost == 0) == 376
+    assert np.count_nonzero(by_cost == 0) == 291
