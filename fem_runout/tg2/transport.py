@@ -226,14 +226,13 @@ class Transport:
     def _low_order_pass(self) -> None:
         """Velocity, low-order rates A_L and capacities of the state, on the active set."""
         if self.active_set:  # dry cells give exact zeros: visit the active ones only
-            known = self._inside
+            # the last step's test over the ranks, if made on this set (else None: test here)
+            known = self._inside[0] if self._inside is not None \
+                and self._inside[1] == self.active.rebuilds else None
             if self._anywhere:  # set by set_state: the flow may be anywhere
                 self.active.update(self.state())
-            elif known is None or known[1] != self.active.rebuilds or not known[0]:
-                # the step wrote the set's nodes only; test here unless the step's test holds
-                inside = known[0] if known is not None and known[1] == self.active.rebuilds \
-                    else None
-                self.active.update(self.state_on(self.active.nodes), self.active.nodes, inside)
+            elif not known:  # the step wrote the set's nodes only; inside: nothing to do
+                self.active.update(self.state_on(self.active.nodes), self.active.nodes, known)
             self._anywhere = False
         on = self._arrays()
         nodes = on["nodes"]
