@@ -13,8 +13,10 @@ travel angle ``α`` (Heim's *Fahrböschung*) along its path, meets the ground
 avalanches, 18-30°, and of most debris flows) the estimate holds the path. The mesh is then
 cut across the path's main direction (the principal axis of the path's cells) into pieces
 holding equal shares of the path's cells (:func:`strip_owners`), :data:`PIECES_PER_RANK` per
-rank, dealt to the ranks in turn (0, 1, 0, 1 on 2 ranks), so that every rank holds flow both
-in the release and in the run-out zone.
+rank, dealt to the ranks in turn from the release's end (0, 1, 0, 1 on 2 ranks), so that every
+rank holds flow both in the release and in the run-out zone. The axis is computed with
+correctly rounded sums in closed form (:func:`main_axis`), so the pieces and their deal are
+the same on any CPU.
 
 On avaKot (TG2-PC, 2 ranks) the owned active cells summed over the run are 4.96 and 8.22
 million with DOLFINx's partition and with a cut at the median of the path's cells (the flow
@@ -39,13 +41,14 @@ release keep DOLFINx's partitioner.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numba
 import numpy as np
 
-__all__ = ["PIECES_PER_RANK", "REACH_ANGLE_DEG", "cell_partitioner", "path_owners", "reachable",
-           "strip_owners"]
+__all__ = ["PIECES_PER_RANK", "REACH_ANGLE_DEG", "cell_partitioner", "main_axis", "path_owners",
+           "reachable", "strip_owners"]
 
 #: Travel angle [deg] bounding the reachable region (a lower bound of observed run-outs).
 REACH_ANGLE_DEG = 12.0
@@ -110,7 +113,33 @@ def reachable(z: np.ndarray, source: np.ndarray, spacing: tuple[float, float],
     return path
 
 
-def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) -> np.ndarray:
+def main_axis(x: np.ndarray, y: np.ndarray, weight: np.ndarray,
+              origin: tuple[float, float] | None = None) -> tuple[float, float, float, float]:
+    """Weighted centre and unit major axis ``(mx, my, ax, ay)`` of the points, the same on any CPU.
+
+    The centre and second moments are correctly rounded sums (``math.fsum``) and the axis is
+    the closed form ``θ = atan2(2 c_xy, c_xx - c_yy) / 2`` of the 2 × 2 covariance, not
+    LAPACK's ``eigh``: its eigenvector's sign (and last bits) follow the BLAS kernels of the
+    CPU, and a flipped axis dealt the path's pieces to the ranks in the opposite order on
+    another CPU. The axis points away from ``origin`` (the release's centre), else to ``+x``
+    (``+y`` for an axis along ``y``).
+    """
+    total = math.fsum(weight)
+    mx, my = math.fsum(weight * x) / total, math.fsum(weight * y) / total
+    dx, dy = x - mx, y - my
+    cxx, cxy, cyy = (math.fsum(weight * a * b) for a, b in ((dx, dx), (dx, dy), (dy, dy)))
+    theta = 0.5 * math.atan2(2.0 * cxy, cxx - cyy)
+    ax, ay = math.cos(theta), math.sin(theta)
+    if origin is not None:
+        ahead = (origin[0] - mx) * ax + (origin[1] - my) * ay
+        sign = -1.0 if ahead > 0.0 else 1.0
+    else:
+        sign = -1.0 if (ax if abs(ax) >= abs(ay) else ay) < 0.0 else 1.0
+    return mx, my, sign * ax, sign * ay
+
+
+def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int,
+                 origin: tuple[float, float] | None = None) -> np.ndarray:
     """Rank of every cell: pieces with equal shares of the weight along the cells' main axis.
 
     Args:
@@ -118,18 +147,16 @@ def strip_owners(x: np.ndarray, y: np.ndarray, weight: np.ndarray, nparts: int) 
         y: Cell centre y [m].
         weight: Non-negative weight per cell (1 on the estimated path).
         nparts: Number of pieces.
+        origin: A point at the path's start (the release): piece 0 is at its end of the
+            axis (:func:`main_axis`).
 
     Returns:
         (n,) int32 piece of every cell: ``nparts`` pieces in order along the path, cut where
         the weight summed along it reaches ``k / nparts`` of the total (cells beyond the
         path's ends go to the first and last piece).
     """
-    w = weight / weight.sum()
-    mx, my = float(w @ x), float(w @ y)
-    cov = np.cov(np.stack([x - mx, y - my]), aweights=weight + 1e-300)
-    _, vecs = np.linalg.eigh(cov)
-    along = vecs[:, 1]  # the major axis: along the path
-    s = (x - mx) * along[0] + (y - my) * along[1]
+    mx, my, ax, ay = main_axis(x, y, weight, origin)
+    s = (x - mx) * ax + (y - my) * ay
     order = np.argsort(s, kind="stable")
     below = np.cumsum(weight[order])
     cuts = s[order][np.searchsorted(below, below[-1] * np.arange(1, nparts) / nparts)]
@@ -156,8 +183,10 @@ def path_owners(centres: np.ndarray, z: np.ndarray, released: np.ndarray,
     path = reachable(z.reshape(ny, nx), (released > 0.0).reshape(ny, nx), spacing).ravel()
     if nparts < 2 or not path.any():
         return None
+    start = released > 0.0
+    origin = (float(centres[start, 0].mean()), float(centres[start, 1].mean()))
     pieces = strip_owners(centres[:, 0], centres[:, 1], path.astype(float),
-                          PIECES_PER_RANK * nparts)
+                          PIECES_PER_RANK * nparts, origin)
     return (pieces % nparts).astype(np.int32)  # dealt in turn along the path
 
 
