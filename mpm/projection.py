@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 from mpm.projection_blend import blend
-from mpm.projection_support import consistent, consistent_on_support, row_spans, support_cells
+from mpm.projection_support import consistent, consistent_on_support, flow_cells, row_spans
 
 __all__ = ["GridProjector", "node_cells", "tridiagonal_mass_solve"]
 
@@ -103,10 +103,13 @@ def _blend(sub, mass, cells, matrix, wy, wx, ends, area):
 
 @numba.njit(cache=True)
 def _blend_on_support(sub, mass, cells, matrix, wy, wx, ends, area, rows, cols):
-    """:func:`_blend` on the flow's support: ``(h, touched nodes, limited)``."""
+    """:func:`_blend`, consistent on the flow's support, blended on the flow's cells.
+
+    Returns ``(h, touched nodes, limited)`` (:mod:`mpm.projection_support`).
+    """
     lo, hi = row_spans(rows, cols, wy)
-    high, clo, chi = consistent_on_support(sub, wy, wx, ends, area, lo, hi, WINDOW_MARGIN)
-    start, nodes = support_cells(clo, chi, wy, wx)
+    high = consistent_on_support(sub, wy, wx, ends, area, lo, hi, WINDOW_MARGIN)
+    start, nodes = flow_cells(rows, cols, wy, wx)
     ids = np.zeros(cells.shape[0], dtype=np.int64)
     res, limited = blend(sub, mass, high, cells, matrix.reshape(1, 4, 4), ids, start, nodes)
     return res, nodes, limited

@@ -75,22 +75,27 @@ def _more_columns(acc, cells, mats, ids, high, c, w01, w02, w03, w12, w13, w23):
 
 @numba.njit(cache=True)
 def _full_fluxes(cells, mats, ids, low, high, start, acc):
-    """Add every pair flux of the ``start`` cells to ``acc`` in full: ``(α_K, P⁻)``.
+    """Add every pair flux of the ``start`` cells with depth to ``acc`` in full: ``(α_K, P⁻)``.
 
-    Returns each start cell's factor ``α_K`` and the (ramped) first-column fluxes leaving
-    each node, ``P⁻ <= 0``.
+    Returns each start cell's factor ``α_K`` (``-1``: a cell without lumped depth, skipped)
+    and the (ramped) first-column fluxes leaving each node, ``P⁻ <= 0``. A cell without
+    lumped depth has ``α_K = 0``: its fluxes would be added and taken off again in full, a
+    net zero but for round-off (:func:`pair_blend`), so they are not formed at all.
     """
     alpha = np.empty(start.size)
     leave = np.zeros(low.shape[0])
     for t in range(start.size):
         c = start[t]
         n0, n1, n2, n3 = cells[c, 0], cells[c, 1], cells[c, 2], cells[c, 3]
+        depth = max(max(low[n0, 0], low[n1, 0]), max(low[n2, 0], low[n3, 0]))
+        if not depth > 0.0:
+            alpha[t] = -1.0
+            continue
         f01, f02, f03, f12, f13, f23, h0, h1, h2, h3 = _cell_fluxes(cells, mats, ids, high, c)
         acc[n0, 0] += f01 + f02 + f03
         acc[n1, 0] += f12 + f13 - f01
         acc[n2, 0] += f23 - f02 - f12
         acc[n3, 0] -= f03 + f13 + f23
-        depth = max(max(low[n0, 0], low[n1, 0]), max(low[n2, 0], low[n3, 0]))
         al = alpha[t] = _cell_factor(h0, h1, h2, h3, depth)
         l0, l1 = _loss(al * f01, 0.0, 0.0)
         l0, l2 = _loss(al * f02, l0, 0.0)
@@ -115,8 +120,8 @@ def _take_off(cells, mats, ids, high, start, alpha, ratio, acc):
         c = start[t]
         n0, n1, n2, n3 = cells[c, 0], cells[c, 1], cells[c, 2], cells[c, 3]
         r0, r1, r2, r3, al = ratio[n0], ratio[n1], ratio[n2], ratio[n3], alpha[t]
-        if al == 1.0 and min(min(r0, r1), min(r2, r3)) == 1.0:
-            continue
+        if al < 0.0 or (al == 1.0 and min(min(r0, r1), min(r2, r3)) == 1.0):
+            continue  # skipped (no depth), or nothing to take off
         limited += 1
         f01, f02, f03, f12, f13, f23 = _cell_fluxes(cells, mats, ids, high, c)[:6]
         q01, q02, q03 = _cut(f01, al, r0, r1), _cut(f02, al, r0, r2), _cut(f03, al, r0, r3)

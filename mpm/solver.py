@@ -374,8 +374,8 @@ class MPMSolver(CollectiveSteps):
         self._own = sums.restrict(box.j0 * box.nx1 + box.i0,
                                   (box.j0 + box.h - 1) * box.nx1 + box.i0 + box.w)
         index, values = self.projector.project_nodes(sums.act, sums.g[:, 6])
-        # the outputs read only the nonzero nodes: the projection's support reaches 24 nodes
-        # beyond the flow, where half its values are exactly zero (same fields, same bits)
+        # the outputs read only the nonzero nodes: the blend's nodes reach a cell beyond the
+        # flow's, where some values are exactly zero (same fields, same bits)
         index, values = _nonzero(index, values)
         self._h = h = self.buffers.put("h", index, values)
         self.writer.write("h", index, values)
