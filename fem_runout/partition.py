@@ -123,6 +123,15 @@ def main_axis(x: np.ndarray, y: np.ndarray, weight: np.ndarray,
     CPU, and a flipped axis dealt the path's pieces to the ranks in the opposite order on
     another CPU. The axis points away from ``origin`` (the release's centre), else to ``+x``
     (``+y`` for an axis along ``y``).
+
+    Args:
+        x: Point x [m].
+        y: Point y [m].
+        weight: Non-negative weight per point (not all zero).
+        origin: A point the axis points away from, or None.
+
+    Returns:
+        ``(mx, my, ax, ay)``: the weighted centre and the unit vector of the major axis.
     """
     total = math.fsum(weight)
     mx, my = math.fsum(weight * x) / total, math.fsum(weight * y) / total
