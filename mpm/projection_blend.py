@@ -169,8 +169,8 @@ def pair_blend(cells, mats, ids, sub, low, high, mass, start, nodes):
         low: (n, k) low-order (lumped) projection ``b / M_L``.
         high: (n, k) high-order (consistent) projection.
         mass: (n,) lumped mass.
-        start: The cells whose fluxes may be nonzero, increasing (all cells but those whose
-            nodes all have ``high = 0``).
+        start: The cells to visit, increasing: at least every cell with lumped depth (the
+            others, if any, are skipped: their factor is 0).
         nodes: The nodes of those cells, increasing (``h = 0`` elsewhere).
 
     Returns:
