@@ -17,7 +17,8 @@ DEMO_CASE ?= cases/inclined_dam_break.yaml
 RANK3_TESTS ?= tests/mpi/test_partition_cut.py tests/mpi/test_cell_kernels_mpi.py tests/mpi/test_tg2_mpi.py \
 	tests/mpi/test_exact_sums_mpi.py tests/mpi/test_partition_mpi.py tests/mpi/test_terrain_mpi.py \
 	tests/mpi/test_mpm_mpi.py tests/mpi/test_hard_cases_mpi.py tests/mpi/test_ensemble_mpi.py \
-	tests/mpi/test_restart_mpi.py tests/mpi/test_quadmesh_mpi.py tests/mpi/test_shared_nodes_mpi.py
+	tests/mpi/test_restart_mpi.py tests/mpi/test_quadmesh_mpi.py tests/mpi/test_shared_nodes_mpi.py \
+	tests/mpi/test_output_mpi.py
 
 .PHONY: setup demo test test-serial test-mpi lint bench bench-peers clean
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -46,6 +46,34 @@ class Callback(Protocol):
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
         """Act once after the last step."""
+        ...
+
+
+@runtime_checkable
+class StepReduction(Protocol):
+    """A callback whose per-step values ride in the runner's reductions of the step.
+
+    After every step the runner makes one max reduction (the solver's health, the next step's
+    limits, the largest speed, the stop signal) and at most one sum reduction (the kinetic
+    energy of the rest test). A callback that needs global maxima and exact sums of the state
+    after the step (the series' diagnostics) hands its local parts to these two messages
+    instead of sending two of its own, and gets them back before its ``step``:
+    :meth:`step_maxima`, then :meth:`step_sums` of the reduced maxima, then
+    :meth:`step_reduced` with both reduced. None of the three communicates. Sums must be of
+    the exact-fold kind (:func:`fem_runout.exact_sum.local_folds`), whose totals do not depend
+    on what else the message carries.
+    """
+
+    def step_maxima(self, solver: Solver) -> np.ndarray:
+        """Return this rank's values to maximise over the ranks (a float array)."""
+        ...
+
+    def step_sums(self, solver: Solver, maxima: np.ndarray) -> np.ndarray:
+        """Return this rank's values to sum over the ranks, given the reduced maxima."""
+        ...
+
+    def step_reduced(self, solver: Solver, maxima: np.ndarray, sums: np.ndarray) -> None:
+        """Take both, reduced over the ranks (called before :meth:`Callback.step`)."""
         ...
 
 

@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["exact_total", "exact_totals", "extractors", "finite_bounds", "fold_extractors"]
+__all__ = ["exact_total", "exact_totals", "extractors", "finite_bounds", "fold_extractors",
+           "local_folds"]
 
 
 def extractors(bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> np.ndarray:
@@ -93,6 +94,26 @@ def exact_totals(columns, bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> n
     Returns:
         The totals, one per column.
     """
+    folds = local_folds(columns, bounds, n_terms)
+    comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
+    return folds[0::2] + folds[1::2]
+
+
+def local_folds(columns, bounds: np.ndarray, n_terms: int) -> np.ndarray:
+    """Return this rank's two folds per column of :func:`exact_totals` (no MPI).
+
+    Sum the result over the ranks (with any other folds in the same message) and add each
+    column's pair, ``folds[0::2] + folds[1::2]``: every partial sum is exact, so the totals
+    have the same bits whatever the message holds besides.
+
+    Args:
+        columns: This rank's terms, one array per total.
+        bounds: A bound of ``|x|`` per column over every rank's terms (the same on every rank).
+        n_terms: A bound of the number of terms of any column over all ranks.
+
+    Returns:
+        (2 n_columns,) ``hi, lo`` of each column in turn.
+    """
     ext = fold_extractors(bounds, n_terms)
     folds = np.empty(2 * len(columns))
     for k, values in enumerate(columns):
@@ -100,5 +121,4 @@ def exact_totals(columns, bounds: np.ndarray, n_terms: int, comm: MPI.Comm) -> n
         hi = (x + ext[k, 0]) - ext[k, 0]
         lo = ((x - hi) + ext[k, 1]) - ext[k, 1]
         folds[2 * k], folds[2 * k + 1] = hi.sum(), lo.sum()  # every partial sum exact
-    comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
-    return folds[0::2] + folds[1::2]
+    return folds

@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from fem_runout.callbacks import Callback, StepInfo
+from fem_runout.callbacks import Callback, StepInfo, StepReduction
 from fem_runout.errors import RunInterrupted, SimulationError
-from fem_runout.exact_sum import exact_total
+from fem_runout.exact_sum import exact_total, local_folds
 from fem_runout.health import locate, motion_terms
 from fem_runout.solver_api import Solver
 
@@ -117,6 +117,8 @@ class Runner:
         self.solver = solver
         self.schedule = schedule
         self.callbacks = list(callbacks)
+        # those whose per-step values ride in the step's reductions (:meth:`_check`)
+        self._reducing = [cb for cb in self.callbacks if isinstance(cb, StepReduction)]
         self.progress = progress
         self.checkpoints = checkpoints
         self.stop = stop
@@ -226,27 +228,74 @@ class Runner:
     def _check(self) -> str | None:
         """Check the state's health, the speed limit and the stop signal in one reduction.
 
-        The solver's health flag carries the largest speed (and kinetic energy term) of
-        :func:`motion` and the signal of ``stop`` (collective: one max reduction, plus the
-        energy's sum with ``rest_energy``). Returns a message if the state is bad.
+        The max reduction of the solver's health flag (:meth:`Solver.health`) also carries the
+        largest speed (and kinetic energy term) of :func:`motion`, the signal of ``stop`` and
+        the maxima of the :class:`~fem_runout.callbacks.StepReduction` callbacks; one sum
+        reduction then carries the kinetic energy (with ``rest_energy``) and the callbacks'
+        sums. Returns a message if the state is bad.
         """
-        s = self.schedule
+        s, solver = self.schedule, self.solver
         self._motion, self._signal = None, 0
-        if s.max_speed is None and s.rest_speed is None and self.stop is None:
-            return self.solver.health()
-        energy = s.rest_speed is not None and s.rest_energy is not None
-        with np.errstate(all="ignore"):  # a bad state is reported by health, not numpy
-            top, terms = local_motion(self.solver, s.rest_depth, energy)
-        checks = np.array([top[0], top[1], float(self.stop()) if self.stop is not None else 0.0])
-        problem = self.solver.health(checks)
+        watch = s.max_speed is not None or s.rest_speed is not None or self.stop is not None
+        energy = watch and s.rest_speed is not None and s.rest_energy is not None
+        parts = [np.asarray(cb.step_maxima(solver), dtype=np.float64) for cb in self._reducing]
+        terms = None
+        if watch:
+            with np.errstate(all="ignore"):  # a bad state is reported by health, not numpy
+                top, terms = local_motion(solver, s.rest_depth, energy)
+            stop = float(self.stop()) if self.stop is not None else 0.0
+            parts.insert(0, np.array([top[0], top[1], stop]))
+        checks = np.concatenate(parts) if parts else None
+        problem = solver.health(checks)
         if problem is not None:
             return problem
-        self._motion = finish_motion(self.solver, checks[:2], terms, energy)
+        if not parts:
+            return None
+        maxima = np.split(checks, np.cumsum([p.size for p in parts])[:-1])
+        total = self._reduce_sums(maxima[1:] if watch else maxima,
+                                  terms if energy else None, float(checks[1]) if watch else 0.0)
+        if not watch:
+            return None
+        self._motion = (float(checks[0]), total)
         self._signal = int(checks[2])
         speed, limit = self._motion[0], s.max_speed
         if limit is not None and speed > limit:
             return f"speed {speed:.4g} m/s above numerics.max_speed = {limit:g} m/s"
         return None
+
+    def _reduce_sums(self, maxima: list[np.ndarray], terms: np.ndarray | None,
+                     bound: float) -> float:
+        """One sum reduction of the kinetic energy's folds and the callbacks' sums.
+
+        Args:
+            maxima: Each :class:`~fem_runout.callbacks.StepReduction` callback's maxima,
+                reduced over the ranks.
+            terms: This rank's kinetic energy terms (:func:`local_motion`), or None.
+            bound: Their bound over the ranks.
+
+        Returns:
+            The kinetic energy term's exact total (0 without ``terms``).
+        """
+        from mpi4py import MPI
+
+        solver = self.solver
+        parts = [np.asarray(cb.step_sums(solver, m), dtype=np.float64)
+                 for cb, m in zip(self._reducing, maxima, strict=True)]
+        if terms is not None:
+            n = solver.V.dofmap.index_map.size_global
+            parts.insert(0, local_folds([terms], np.array([bound]), n))
+        if not parts:
+            return 0.0
+        sums = np.concatenate(parts)
+        solver.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        reduced = np.split(sums, np.cumsum([p.size for p in parts])[:-1])
+        if terms is not None:
+            total, reduced = float(reduced[0][0] + reduced[0][1]), reduced[1:]
+        else:
+            total = 0.0
+        for cb, m, part in zip(self._reducing, maxima, reduced, strict=True):
+            cb.step_reduced(solver, m, part)
+        return total
 
     def _fail(self, problem: str, snap: Any, info: StepInfo) -> None:
         """Name the place, go back to the last good state, save it, raise SimulationError."""

@@ -25,7 +25,8 @@ if TYPE_CHECKING:
     from fem_runout.callbacks import StepInfo
     from fem_runout.solver_api import Solver
 
-__all__ = ["SERIES_COLUMNS", "PeakTracker", "SeriesRecorder", "compute_diagnostics", "nodal_speed"]
+__all__ = ["SERIES_COLUMNS", "DiagnosticTerms", "PeakTracker", "SeriesRecorder",
+           "compute_diagnostics", "nodal_speed"]
 
 SERIES_COLUMNS: tuple[str, ...] = (
     "t",
@@ -78,6 +79,10 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
                         x: np.ndarray | None = None) -> dict[str, float]:
     """Global diagnostics of the current state (collective; owned dofs only).
 
+    Two reductions: the maxima (:func:`local_maxima`), then the exact sums' folds
+    (:func:`local_folds`). The runner makes the same two reductions with the step's own
+    (:class:`SeriesRecorder` is a :class:`~fem_runout.callbacks.StepReduction`).
+
     Args:
         solver: The solver (see :class:`fem_runout.solver_api.Solver`).
         threshold: Dry threshold [m]: nodes with ``h > threshold`` are wet.
@@ -93,30 +98,65 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
         (the sums are exact-fold sums, :func:`fem_runout.exact_sum.exact_totals`).
     """
     comm = solver.comm
-    if x is None:
-        x = owned_x(solver)
-    idx = flow_index(solver)
-    idx = _owned_range(idx.stop) if isinstance(idx, slice) else np.asarray(idx, dtype=np.int64)
-    mass = np.asarray(solver.lumped_mass, dtype=np.float64)
-    h, hu, hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
-    local_max = diagnostic_maxima(idx, x, mass, h, hu, hv, float(threshold), float(density),
-                                  solver.V.dofmap.index_map.size_local > 0)
-    comm.Allreduce(MPI.IN_PLACE, local_max, op=MPI.MAX)
-    ext = fold_extractors(local_max[:3], solver.V.dofmap.index_map.size_global)
-    folds = diagnostic_folds(idx, mass, h, hu, hv, float(threshold), float(density), ext)
+    terms = DiagnosticTerms(solver, threshold, density, owned_x(solver) if x is None else x)
+    maxima = terms.maxima()
+    comm.Allreduce(MPI.IN_PLACE, maxima, op=MPI.MAX)
+    folds = terms.folds(maxima)
     comm.Allreduce(MPI.IN_PLACE, folds, op=MPI.SUM)
-    sums = folds[0::2] + folds[1::2]  # as exact_totals: every partial sum exact
-    maxima = local_max[3:]
-    return {
-        "volume": float(sums[0]),
-        "kinetic_energy": float(sums[1]),
-        "max_depth": float(maxima[0]),
-        "max_speed": float(maxima[1]),
-        "wet_area": float(sums[2]),
-        "front_x": float(maxima[2]) if np.isfinite(maxima[2]) else float("nan"),
-        "outflow": float(solver.outflow_volume),
-        "dried": float(solver.dried_volume),
-    }
+    return terms.result(maxima, folds)
+
+
+class DiagnosticTerms:
+    """One rank's parts of :func:`compute_diagnostics` for one state (no MPI).
+
+    :meth:`maxima` (maximise over the ranks), :meth:`folds` of the reduced maxima (sum over
+    the ranks), :meth:`result` of both reduced: any message may carry them, the bits are
+    those of :func:`compute_diagnostics`.
+
+    Args:
+        solver: The solver.
+        threshold: Dry threshold [m].
+        density: Bulk density [kg/m^3].
+        x: :func:`owned_x` of the solver.
+    """
+
+    def __init__(self, solver: Solver, threshold: float, density: float,
+                 x: np.ndarray) -> None:
+        idx = flow_index(solver)
+        self.idx = _owned_range(idx.stop) if isinstance(idx, slice) \
+            else np.asarray(idx, dtype=np.int64)
+        self.solver, self.x = solver, x
+        self.threshold, self.density = float(threshold), float(density)
+        self.mass = np.asarray(solver.lumped_mass, dtype=np.float64)
+        self.h, self.hu, self.hv = (solver.fields[k].x.array.real for k in ("h", "hu", "hv"))
+
+    def maxima(self) -> np.ndarray:
+        """(6,) this rank's bounds of the three sums' terms, largest depth, speed and x."""
+        return diagnostic_maxima(self.idx, self.x, self.mass, self.h, self.hu, self.hv,
+                                 self.threshold, self.density,
+                                 self.solver.V.dofmap.index_map.size_local > 0)
+
+    def folds(self, maxima: np.ndarray) -> np.ndarray:
+        """(6,) this rank's folds of the three sums, from :meth:`maxima` over the ranks."""
+        ext = fold_extractors(maxima[:3], self.solver.V.dofmap.index_map.size_global)
+        return diagnostic_folds(self.idx, self.mass, self.h, self.hu, self.hv, self.threshold,
+                                self.density, ext)
+
+    def result(self, maxima: np.ndarray, folds: np.ndarray) -> dict[str, float]:
+        """Return the diagnostics of :meth:`maxima` and :meth:`folds`, both reduced."""
+        sums = folds[0::2] + folds[1::2]  # as exact_totals: every partial sum exact
+        top = maxima[3:]
+        solver = self.solver
+        return {
+            "volume": float(sums[0]),
+            "kinetic_energy": float(sums[1]),
+            "max_depth": float(top[0]),
+            "max_speed": float(top[1]),
+            "wet_area": float(sums[2]),
+            "front_x": float(top[2]) if np.isfinite(top[2]) else float("nan"),
+            "outflow": float(solver.outflow_volume),
+            "dried": float(solver.dried_volume),
+        }
 
 
 class SeriesRecorder:
@@ -125,7 +165,10 @@ class SeriesRecorder:
     One row per recorded state (the initial state and every step) with the columns
     :data:`SERIES_COLUMNS`; ``mass_error = (volume + outflow + dried - V0) / V0`` with ``V0`` the
     initial volume (the absolute error if ``V0 == 0``). The CSV is written on rank 0 at every
-    output and at finish, so a crashed run keeps its series.
+    output and at finish, so a crashed run keeps its series. A step's row rides in the
+    runner's two reductions of the step (a :class:`~fem_runout.callbacks.StepReduction`:
+    :meth:`step_maxima`, :meth:`step_sums`, :meth:`step_reduced`); without them :meth:`step`
+    reduces it itself (:func:`compute_diagnostics`), with the same bits.
     """
 
     def __init__(self, path: str | Path | None, threshold: float, density: float) -> None:
@@ -146,15 +189,33 @@ class SeriesRecorder:
         self._rank = 0
         self._x: np.ndarray | None = None
         self._resumed = False
+        self._terms: DiagnosticTerms | None = None  # the step's, between the reductions
+        self._diag: dict[str, float] | None = None  # the step's, reduced by the runner
 
     @property
     def series(self) -> dict[str, np.ndarray]:
         """The recorded columns as float arrays (the same on every rank)."""
         return {name: np.asarray(col, dtype=np.float64) for name, col in self._columns.items()}
 
+    def step_maxima(self, solver: Solver) -> np.ndarray:
+        """Return this rank's maxima of the state after the step (no MPI)."""
+        self._terms = DiagnosticTerms(solver, self.threshold, self.density, self._x)
+        self._diag = None
+        return self._terms.maxima()
+
+    def step_sums(self, solver: Solver, maxima: np.ndarray) -> np.ndarray:
+        """Return this rank's folds of the step's sums, from the reduced maxima (no MPI)."""
+        return self._terms.folds(maxima)
+
+    def step_reduced(self, solver: Solver, maxima: np.ndarray, sums: np.ndarray) -> None:
+        """Keep the step's diagnostics for :meth:`step` (both reduced over the ranks)."""
+        self._diag, self._terms = self._terms.result(maxima, sums), None
+
     def _record(self, solver: Solver, info: StepInfo) -> None:
-        """Append one row for the current state (collective)."""
-        diag = compute_diagnostics(solver, self.threshold, self.density, self._x)
+        """Append one row for the current state (collective unless the runner reduced it)."""
+        diag, self._diag = self._diag, None
+        if diag is None:
+            diag = compute_diagnostics(solver, self.threshold, self.density, self._x)
         v0 = self.initial_volume
         balance = diag["volume"] + diag["outflow"] + diag["dried"] - v0
         row = {"t": info.t, "dt": info.dt, **diag}
@@ -210,6 +271,7 @@ class SeriesRecorder:
 
     def finish(self, solver: Solver, info: StepInfo) -> None:
         """Record the final state if not yet recorded, and write the CSV."""
+        self._diag = None  # a step's that was never recorded (the state went bad)
         if self._last_step != info.step:
             self._record(solver, info)
         self.write_csv()

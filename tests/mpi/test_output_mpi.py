@@ -127,3 +127,24 @@ def test_series_peaks_and_fields_in_parallel(tmp_path):
     (peak,) = read_vtx_bp4(out / "peaks.bp")
     pk = np.where(peak["geometry"][:, 0] < 2.6, 1 + peak["geometry"][:, 0] / 4, 0.0)
     assert np.max(np.abs(peak["peak_depth"] - pk)) < 1e-12
+
+
+from fem_runout.runner import Runner, Schedule  # noqa: E402
+from tests.test_step_reduction import (  # noqa: E402  (the same checks on every rank count)
+    SCHEDULES,
+    THRESHOLD,
+    SlidingBump,
+    test_a_recorded_step_sends_no_message_of_its_own,  # noqa: F401
+    test_the_rows_are_those_of_compute_diagnostics,  # noqa: F401
+)
+
+
+def test_the_series_reduced_with_the_step_is_the_serial_series():
+    series = []
+    for comm in (WORLD, MPI.COMM_SELF):
+        recorder = SeriesRecorder(None, THRESHOLD, 200.0)
+        Runner(SlidingBump(comm), Schedule(2.0, 1.0, 10.0, **SCHEDULES["rest energy"]),
+               [recorder]).run()
+        series.append(recorder.series)
+    for name, values in series[0].items():
+        assert np.array_equal(values, series[1][name], equal_nan=True), name
