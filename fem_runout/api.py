@@ -328,11 +328,15 @@ def _say_mesh(case: Case, solver: Solver, comm) -> None:
 
 
 def _say_released(solver, comm) -> None:
-    """Print the released volume ``Σ M_i h_i`` on rank 0 (collective)."""
-    from fem_runout.output import global_sum
+    """Print the released volume ``Σ M_i h_i`` on rank 0 (collective).
+
+    An exact sum (:func:`~fem_runout.output.gather.exact_global_sum`): the digits printed do
+    not depend on the rank count or on the CPU's BLAS kernels (a dot product's do).
+    """
+    from fem_runout.output.gather import exact_global_sum
 
     n = solver.V.dofmap.index_map.size_local
-    volume = global_sum(comm, solver.lumped_mass[:n] @ solver.fields["h"].x.array[:n])
+    volume = exact_global_sum(comm, solver.lumped_mass[:n] * solver.fields["h"].x.array[:n])
     if comm.rank == 0:
         print(f"released volume: {volume:.6g} m³", flush=True)
 

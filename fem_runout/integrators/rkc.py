@@ -283,15 +283,15 @@ def spectral_radius_power(
     """
     w = np.asarray(w, dtype=float)
     f0 = np.asarray(f(w), dtype=float)
-    size = max(float(np.linalg.norm(w)), 1.0)
+    size = max(_norm(w), 1.0)
     delta = math.sqrt(np.finfo(float).eps) * size
     rng = np.random.default_rng(12345)
     v = rng.standard_normal(w.shape)
-    v *= delta / np.linalg.norm(v)
+    v *= delta / _norm(v)
     sigma = 0.0
     for _ in range(iters):
         df = np.asarray(f(w + v), dtype=float) - f0
-        norm_df = float(np.linalg.norm(df))
+        norm_df = _norm(df)
         new = norm_df / delta
         if norm_df == 0.0:
             return 0.0
@@ -300,3 +300,12 @@ def spectral_radius_power(
             return safety * new
         sigma = new
     return safety * sigma
+
+
+def _norm(x: np.ndarray) -> float:
+    """Euclidean norm from a correctly rounded sum (``math.fsum``): the same bits on any CPU.
+
+    ``np.linalg.norm`` calls BLAS, whose kernels (and last bits) follow the CPU.
+    """
+    a = np.ravel(np.asarray(x, dtype=float))
+    return math.sqrt(math.fsum(a * a))
