@@ -56,27 +56,37 @@ def _rings(seeds, offsets, adj, cells, n_nodes, rings):
         if n == hi:
             break
         lo = hi
-    return np.sort(out[:n])
+    return _marked(seen, n)
+
+
+@numba.njit(cache=True)
+def _marked(seen, count):
+    """Return the ``count`` indices where ``seen`` is True, increasing (a scan, no sort)."""
+    out = np.empty(count, dtype=np.int64)
+    n = 0
+    for i in range(seen.size):
+        if seen[i]:
+            out[n] = i
+            n += 1
+    return out
 
 
 @numba.njit(cache=True)
 def _window_cells(index, offsets, adj, cells, n_nodes):
     """Cells with all nodes in ``index`` (sorted): ``(ids, local)``, local node numbers."""
     local = np.full(n_nodes, -1, dtype=np.int64)
-    size = 0
     for t in range(index.size):
         local[index[t]] = t
-        size += offsets[index[t] + 1] - offsets[index[t]]
-    buf = np.empty(size, dtype=np.int64)
+    inside = np.zeros(cells.shape[0], dtype=np.bool_)
     count = 0
     for t in range(index.size):
         for e in range(offsets[index[t]], offsets[index[t] + 1]):
             c = adj[e]
             if cells[c, 0] == index[t] and min(local[cells[c, 1]], local[cells[c, 2]],
                                                local[cells[c, 3]]) >= 0:
-                buf[count] = c
+                inside[c] = True  # found once: from its first node
                 count += 1
-    ids = np.sort(buf[:count])
+    ids = _marked(inside, count)
     lc = np.empty((count, 4), dtype=np.int64)
     for t in range(count):
         for q in range(4):
@@ -106,7 +116,12 @@ def _matvec(ids, lc, emass, x, y):
 
 @numba.njit(cache=True)
 def _pcg(ids, lc, emass, b, rtol, max_it):
-    """``M_C^{-1} b`` per column by Jacobi-preconditioned CG: ``(x, max iterations)``."""
+    """``M_C^{-1} b`` per column by Jacobi-preconditioned CG: ``(x, max iterations)``.
+
+    Three passes over the window per iteration besides the product: ``p·w``; the updates of
+    ``x``, ``r``, ``z`` with ``r·z`` and ``r·r``; the new ``p``. Each dot product is summed
+    in index order, as :func:`_dot` does (the same bits as one pass per operation).
+    """
     n, k = b.shape
     inv = np.zeros(n)
     for t in range(ids.size):
@@ -118,23 +133,28 @@ def _pcg(ids, lc, emass, b, rtol, max_it):
     r, z, p, w = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     its = 0
     for m in range(k):
+        rr = rz = 0.0
         for a in range(n):
             r[a] = b[a, m]
             z[a] = r[a] * inv[a]
             p[a] = z[a]
-        stop = rtol * np.sqrt(_dot(r, r))
-        rz = _dot(r, z)
+            rr += r[a] * r[a]
+            rz += r[a] * z[a]
+        stop = rtol * np.sqrt(rr)
         it = 0
-        while it < max_it and np.sqrt(_dot(r, r)) > stop:
+        while it < max_it and np.sqrt(rr) > stop:
             _matvec(ids, lc, emass, p, w)
             alpha = rz / _dot(p, w)
+            rz_old, rz, rr = rz, 0.0, 0.0
             for a in range(n):
                 x[a, m] += alpha * p[a]
                 r[a] -= alpha * w[a]
                 z[a] = r[a] * inv[a]
-            rz, rz_old = _dot(r, z), rz
+                rz += r[a] * z[a]
+                rr += r[a] * r[a]
+            beta = rz / rz_old
             for a in range(n):
-                p[a] = z[a] + (rz / rz_old) * p[a]
+                p[a] = z[a] + beta * p[a]
             it += 1
         its = max(its, it)
     return x, its

@@ -185,3 +185,72 @@ def test_empty_and_deterministic():
     first = proj.project(b)
     proj.project(_step_sums(coords, 8, 20.0))  # results depend on the inputs only
     assert np.array_equal(proj.project(b), first)
+
+
+def _dot_in_order(x, y):
+    """``x · y`` summed in index order, one float at a time."""
+    s = 0.0
+    for a, b in zip(x.tolist(), y.tolist(), strict=True):
+        s += a * b
+    return s
+
+
+def _matvec_by_cells(ids, lc, emass, x):
+    """``M_C x`` on a window, cell by cell in cell order (the projector's order)."""
+    y = [0.0] * x.size
+    for t, cell in enumerate(ids.tolist()):
+        m = emass[cell].tolist()
+        v = [x[i] for i in lc[t]]
+        for q in range(4):
+            y[lc[t, q]] += m[q][0] * v[0] + m[q][1] * v[1] + m[q][2] * v[2] + m[q][3] * v[3]
+    return np.array(y)
+
+
+def _cg_one_pass_each(ids, lc, emass, b, rtol, max_it):
+    """Jacobi-preconditioned CG written out one operation at a time (before session 52)."""
+    n, k = b.shape
+    diag = np.zeros(n)
+    for t, cell in enumerate(ids):
+        for q in range(4):
+            diag[lc[t, q]] += emass[cell, q, q]
+    inv = 1.0 / diag
+    x = np.zeros((n, k))
+    for m in range(k):
+        r = b[:, m].copy()
+        z = r * inv
+        p = z.copy()
+        stop = rtol * np.sqrt(_dot_in_order(r, r))
+        rz, it = _dot_in_order(r, z), 0
+        while it < max_it and np.sqrt(_dot_in_order(r, r)) > stop:
+            w = _matvec_by_cells(ids, lc, emass, p)
+            alpha = rz / _dot_in_order(p, w)
+            x[:, m] += alpha * p
+            r -= alpha * w
+            z = r * inv
+            rz, rz_old = _dot_in_order(r, z), rz
+            p = z + (rz / rz_old) * p
+            it += 1
+    return x
+
+
+def test_the_fused_cg_and_the_scans_give_the_bits_of_their_definitions():
+    """The consistent solve's CG (fused passes) gives the bits of CG written one operation
+    at a time; the window (rings by a scan of marks, no sort) and its cells are the sorted
+    sets of their definitions."""
+    from mpm.mesh_projection import CG_MAX_ITERATIONS, CG_RTOL, WINDOW_RINGS
+
+    cells, coords = _tri_quad_mesh(24, 18, 1.0, seed=3)
+    proj = MeshProjector(cells, coords)
+    rng = np.random.default_rng(7)
+    seeds = np.unique(rng.integers(0, 500, 4))
+    near = seeds
+    for _ in range(WINDOW_RINGS):  # the nodes of every cell touching the set
+        near = np.unique(cells[np.isin(cells, near).any(axis=1)])
+    index = proj.window(seeds)
+    assert np.array_equal(index, near) and 0 < index.size < proj.n_nodes
+    ids = np.flatnonzero(np.isin(cells, index).all(axis=1))
+    lc = np.searchsorted(index, cells[ids])
+    b = rng.uniform(0.0, 2.0, (index.size, 2))
+    want = _cg_one_pass_each(ids, lc, proj.element_mass, b, CG_RTOL, CG_MAX_ITERATIONS)
+    assert np.array_equal(proj.consistent(b, index), want)
+    assert 10 < proj.solver_iterations < CG_MAX_ITERATIONS
