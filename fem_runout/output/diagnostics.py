@@ -79,9 +79,10 @@ def compute_diagnostics(solver: Solver, threshold: float, density: float,
                         x: np.ndarray | None = None) -> dict[str, float]:
     """Global diagnostics of the current state (collective; owned dofs only).
 
-    Two reductions: the maxima (:func:`local_maxima`), then the exact sums' folds
-    (:func:`local_folds`). The runner makes the same two reductions with the step's own
-    (:class:`SeriesRecorder` is a :class:`~fem_runout.callbacks.StepReduction`).
+    Two reductions: the maxima (:meth:`DiagnosticTerms.maxima`), then the exact sums' folds
+    (:meth:`DiagnosticTerms.folds`). After a step the runner carries both in its own two
+    reductions instead (:class:`SeriesRecorder` is a
+    :class:`~fem_runout.callbacks.StepReduction`).
 
     Args:
         solver: The solver (see :class:`fem_runout.solver_api.Solver`).
