@@ -51,35 +51,57 @@ def _fold(values, rows, recv, is_max):
 
 
 @numba.njit(cache=True)
-def _pack_slots(src, flat, rows, send):
-    """``send[m, s, c] = flat[src[rows[m], s], c]`` (0 where the slot is empty)."""
+def _pack(src, flat, rows, vals, send):
+    """Row ``m`` of ``send``: the slots of node ``rows[m]``, then its ``k`` values of ``vals``.
+
+    Slot ``s`` is ``flat[src[rows[m], s]]`` (0 where empty), slot-major (``s * bs + c``);
+    ``vals`` is (k, n).
+    """
+    n_slots, bs = src.shape[1], flat.shape[1]
+    width = n_slots * bs
     for m in range(rows.size):
-        for s in range(src.shape[1]):
-            j = src[rows[m], s]
-            for c in range(flat.shape[1]):
-                send[m, s, c] = flat[j, c] if j >= 0 else 0.0
+        i = rows[m]
+        for s in range(n_slots):
+            j = src[i, s]
+            for c in range(bs):
+                send[m, s * bs + c] = flat[j, c] if j >= 0 else 0.0
+        for r in range(vals.shape[0]):
+            send[m, width + r] = vals[r, i]
 
 
 @numba.njit(cache=True)
-def _fold_slots(src, flat, uniq, where, recv, acc, out):
+def _unpack(send, recv, rows, uniq, where, bs, acc, out, vals):
     """Shared rows: own slots plus the received ones, totalled in the slots' order.
 
-    ``acc[u]`` takes the slots of row ``uniq[u]``, ``recv[m]`` is added to ``acc[where[m]]``
-    (each slot is non-zero on one rank only: exact), and ``out[uniq[u], c] = ((0 + b_0) +
-    b_1) + ...`` as :func:`fem_runout.cellsum.gather_total` sums on one rank.
+    ``acc[u]`` takes the slots of row ``uniq[u]`` (this rank's, from ``send``), ``recv[m]`` is
+    added to ``acc[where[m]]`` (each slot is non-zero on one rank only: exact), and
+    ``out[uniq[u], c] = ((0 + b_0) + b_1) + ...`` as :func:`fem_runout.cellsum.gather_total`
+    sums on one rank. The received values after the slots are folded into ``vals`` by max
+    (:func:`_fold`).
     """
-    _pack_slots(src, flat, uniq, acc)
+    width = acc.shape[1]
+    n_slots = width // bs
+    for m in range(where.size):  # own slots first (a row sent to two ranks: the same slots)
+        for w in range(width):
+            acc[where[m], w] = send[m, w]
     for m in range(where.size):
         u = where[m]
-        for s in range(acc.shape[1]):
-            for c in range(acc.shape[2]):
-                acc[u, s, c] += recv[m, s, c]
+        for w in range(width):
+            acc[u, w] += recv[m, w]
     for u in range(uniq.size):
-        for c in range(acc.shape[2]):
+        for c in range(bs):
             total = 0.0
-            for s in range(acc.shape[1]):
-                total = total + acc[u, s, c]
+            for s in range(n_slots):
+                total = total + acc[u, s * bs + c]
             out[uniq[u], c] = total
+    for m in range(rows.size):
+        i = rows[m]
+        for r in range(vals.shape[0]):
+            v, x = recv[m, width + r], vals[r, i]
+            if x != x:
+                continue
+            if v != v or v > x:
+                vals[r, i] = v
 
 
 def _displacements(counts: np.ndarray) -> np.ndarray:
@@ -162,21 +184,30 @@ class SharedRows:
         self._counts = np.asarray(counts, np.int64)
         self._uniq, self._where = np.unique(self.rows, return_inverse=True)
         self._plans: dict[int, tuple] = {}
+        self._acc: dict[int, np.ndarray] = {}  # the shared rows' slots (cell_sum), by width
+        self._no_values = np.empty((0, 0))
 
     @property
     def serial(self) -> bool:
         """True on one rank (nothing to exchange)."""
         return self.comm.size == 1
 
-    def _send(self, data: np.ndarray) -> np.ndarray:
-        """Alltoallv of rows of ``data`` to the ranks sharing them; the same rows come back."""
-        width = int(np.prod(data.shape[1:], dtype=np.int64))
+    def _buffers(self, width: int) -> tuple:
+        """Send and receive buffers of ``width`` doubles per row, their counts, displacements.
+
+        Kept for the set's life (the rows are fixed): a step allocates nothing here.
+        """
         if width not in self._plans:
             counts = self._counts * width
-            self._plans[width] = (counts, _displacements(counts))
-        counts, displ = self._plans[width]
-        recv = np.empty_like(data)
-        self.comm.Alltoallv([np.ascontiguousarray(data), (counts, displ), MPI.DOUBLE],
+            self._plans[width] = (np.empty((self.rows.size, width)),
+                                  np.empty((self.rows.size, width)),
+                                  counts, _displacements(counts))
+        return self._plans[width]
+
+    def _send(self, send: np.ndarray, recv: np.ndarray, counts: np.ndarray,
+              displ: np.ndarray) -> np.ndarray:
+        """Alltoallv of the rows of ``send`` to the ranks sharing them, into ``recv``."""
+        self.comm.Alltoallv([send, (counts, displ), MPI.DOUBLE],
                             [recv, (counts, displ), MPI.DOUBLE])
         return recv
 
@@ -192,9 +223,9 @@ class SharedRows:
         if self.serial:
             return
         rows = values if values.ndim == 2 else values[np.newaxis]  # a view: reduced in place
-        send = np.empty((self.rows.size, rows.shape[0]))
+        send, *rest = self._buffers(rows.shape[0])
         _take(rows, self.rows, send)
-        _fold(rows, self.rows, self._send(send), op == "max")
+        _fold(rows, self.rows, self._send(send, *rest), op == "max")
 
     def cell_sum(self, src: np.ndarray, flat: np.ndarray, out: np.ndarray,
                  also_max: np.ndarray | None = None) -> None:
@@ -212,13 +243,12 @@ class SharedRows:
         if self.serial:
             return
         n_slots, bs = src.shape[1], flat.shape[1]
-        vals = np.empty((0, out.shape[0])) if also_max is None else also_max
-        k, width = vals.shape[0], n_slots * bs
-        send = np.empty((self.rows.size, width + k))
-        _pack_slots(src, flat, self.rows, send[:, :width].reshape(-1, n_slots, bs))
-        _take(vals, self.rows, send[:, width:])
-        recv = self._send(send)
-        acc = np.empty((self._uniq.size, n_slots, bs))
-        _fold_slots(src, flat, self._uniq, self._where,
-                    np.ascontiguousarray(recv[:, :width]).reshape(-1, n_slots, bs), acc, out)
-        _fold(vals, self.rows, recv[:, width:], True)
+        vals = self._no_values if also_max is None else also_max
+        width = n_slots * bs
+        send, *rest = self._buffers(width + vals.shape[0])
+        _pack(src, flat, self.rows, vals, send)
+        recv = self._send(send, *rest)
+        acc = self._acc.get(width)
+        if acc is None:
+            acc = self._acc[width] = np.empty((self._uniq.size, width))
+        _unpack(send, recv, self.rows, self._uniq, self._where, bs, acc, out, vals)

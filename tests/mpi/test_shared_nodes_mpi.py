@@ -121,3 +121,28 @@ def test_a_nan_on_any_rank_holding_a_node_reaches_all_of_them():
     a.reducer.reduce(values, "max")
     assert np.isnan(values[0, at]).all()
     assert np.all(values[0, np.isfinite(values[0])] <= WORLD.size - 1)
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_the_exchanges_kept_buffers_give_each_call_its_own_sums(pattern):
+    """Calls of several widths, with and without extrema, interleaved on one set (its send,
+    receive and slot buffers are kept from call to call): each the bits of a first call."""
+    disc = _disc(WORLD, pattern)
+    c = _contributions(disc, _active(disc).owned)
+    rng = np.random.default_rng(5 + WORLD.rank)
+    widths = (3, 1, 2, 3, 1)
+    extrema = [rng.normal(size=(2, _active(disc).nodes.size)) for _ in widths]
+
+    def call(a, k):
+        contrib = c[:, :, :widths[k]] * (1.0 + k)
+        if k % 2 == 0:
+            return [a.cell_sum(contrib)]
+        vals = extrema[k].copy()
+        return [a.cell_sum(contrib, also_max=vals), vals]
+
+    one = _active(disc)
+    kept = [x for k in range(len(widths)) for x in call(one, k)]
+    fresh = [x for k in range(len(widths)) for x in call(_active(disc), k)]  # a set per call
+    assert len(kept) == len(fresh) == 7
+    assert all(np.array_equal(x, y) for x, y in zip(kept, fresh, strict=True))
+    assert not np.array_equal(kept[0][:, :1], kept[1][:, None])  # the calls differ
