@@ -22,6 +22,7 @@ from mpm.mesh_clip import (
     quad_points,
 )
 from mpm.mesh_locate import map_point, tangents
+from mpm.weight_reuse import NO_PREVIOUS, copy_entries, write_keys
 
 __all__ = ["MAX_CELLS", "domain_basis", "domain_scratch", "point_basis"]
 
@@ -237,7 +238,7 @@ def _gradient_sum(geo, m, c, w0, wa, wb, wab):
 
 
 def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
-                 rel, scratch=None):
+                 rel, scratch=None, previous=None, ids=None):
     """Weights of the particle domains: GIMP on a quadrilateral mesh.
 
     A particle's domain is the convex quadrilateral ``x_p + quad[p]`` (corner offsets
@@ -260,14 +261,25 @@ def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
 
     ``scratch``: :func:`domain_scratch`, kept by the caller between calls (a new one if None).
 
+    ``previous``: :class:`mpm.weight_reuse.PreviousWeights` of the last call, or None, and
+    ``ids`` the particles' ids (to find them in it). A particle whose cell, ``(ξ, η)`` and
+    domain have the bits of the same particle then (a particle at rest) gets that call's
+    entries copied: the weights are a function of those eleven numbers (and the mesh)
+    alone, so the result has the bits of a computation. The
+    keys of this call are written to ``previous.next_keys`` (then
+    :meth:`~mpm.weight_reuse.PreviousWeights.keep`).
+
     Returns:
         The number of entries used, or -1 if the buffers are too short (call again with
         longer ones).
     """
     if scratch is None:
         scratch = domain_scratch()
-    return _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S,
-                        dS, rel, *scratch)
+    prev = NO_PREVIOUS if previous is None else previous.loop_arguments(cell.size)
+    ident = np.zeros(cell.size, np.int64) if ids is None else ids
+    return _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad,
+                        xi.view(np.int64), eta.view(np.int64), quad.view(np.int64), ident,
+                        offsets, nodes, S, dS, rel, *prev, *scratch)
 
 
 def domain_scratch() -> tuple[np.ndarray, ...]:
@@ -286,22 +298,39 @@ def domain_scratch() -> tuple[np.ndarray, ...]:
             np.zeros(4, dtype=np.bool_))
 
 
-def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, nodes, S, dS,
-                 rel, snodes, sN, sdN, srel, mom, w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10,
-                 w11, w12, w13):
-    """Run the particles' loop of :func:`domain_basis` on given scratch (it allocates nothing)."""
+def _domain_loop(geo, origin, corners, neighbour, cell, xi, eta, quad, ixi, ieta, iquad, ident,
+                 offsets, nodes, S, dS, rel, keys, n_prev, pkeys, poff, pnodes, pS, pdS, prel,
+                 snodes, sN, sdN, srel, mom, w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11,
+                 w12, w13):
+    """Run the particles' loop of :func:`domain_basis` on given scratch (it allocates nothing).
+
+    ``ixi, ieta, iquad``: the bits of ``ξ, η`` and the domains (their int64 views), ``ident``
+    the ids; ``keys`` receives them with the cell, and a particle found in the last call's
+    ``pkeys`` with the same keys (:func:`mpm.weight_reuse.write_keys`) copies that call's
+    entries ``poff[q] .. poff[q + 1]``.
+    """
     n = cell.size
     cap = nodes.size
     offsets[0] = 0
     work = (w0, w1, w2, w3, w4, w5, w6, w7, w8, w9, w10, w11, w12, w13)
+    record, cursor = keys.shape[0] >= n, 0
     for p in range(n):
         k = cell[p]
+        q, cursor = write_keys(keys, record, p, k, ixi[p], ieta[p], iquad[p], ident[p], pkeys,
+                               n_prev, cursor)
+        start = offsets[p]
+        if q >= 0:
+            count = poff[q + 1] - poff[q]
+            if start + count > cap:
+                return -1
+            copy_entries(poff[q], start, count, pnodes, pS, pdS, prel, nodes, S, dS, rel)
+            offsets[p + 1] = start + count
+            continue
         px, py = map_point(geo, k, xi[p], eta[p])
         for q in range(4):
             sN[0, q], sdN[0, q, 0], sdN[0, q, 1] = 0.0, 0.0, 0.0
         used = 4 * _particle_domain(geo, origin, corners, neighbour, k, xi[p], eta[p], quad[p],
                                     px, py, snodes, sN, sdN, srel, work, mom)
-        start = offsets[p]
         if start + used > cap:
             return -1
         offsets[p + 1] = start + _append_unique(start, used, snodes, sN, sdN, srel, nodes, S,

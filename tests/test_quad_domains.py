@@ -22,6 +22,7 @@ from mpm.mesh_locate import inverse_anchor, invert_near, map_point
 from mpm.mesh_weights import domain_basis, domain_scratch
 from mpm.particles import Particles
 from mpm.quad_split import RESPLIT, QuadSplitter
+from mpm.weight_reuse import PreviousWeights
 from tests.quad_helpers import distorted_rectangle
 
 
@@ -299,3 +300,52 @@ def test_stretch_maps_the_corner_arrays_in_place_by_the_velocity_gradient():
     p.set_quad_at(rows, new)
     assert np.array_equal(p.quad()[rows], new) and p.q1x is column
     assert np.array_equal(np.delete(p.quad(), rows, axis=0), np.delete(q, rows, axis=0))
+
+
+def _particles(cell, xi, eta, area, quad, ids) -> Particles:
+    """Particles at rest with the given domains and ids."""
+    z = 0 * xi
+    p = Particles(xi, eta, z, z, area, np.ones_like(xi), z, z, z, z, z, cell=cell, id=ids)
+    p.set_quad(quad)
+    return p
+
+
+def test_particles_at_rest_get_the_last_steps_weights_with_the_bits_of_a_computation():
+    """The grid copies the last call's weights for a particle whose cell, (ξ, η) and domain
+    have the same bits (mpm/weight_reuse.py): after particles left (the others shift down),
+    a third of the rest moved and new ones arrived at the end, the weights are those of a
+    grid computing every particle; poisoned last-call weights show that the particles at
+    rest, and only they, were copied."""
+    g, fresh_grid = _grid(0.3), _grid(0.3)
+    rng = np.random.default_rng(11)
+    cell, xi, eta, area, quad = _moved_domains(g, rng, 0.4)
+    n = cell.size
+    first = _particles(cell, xi, eta, area, quad, np.arange(n))
+    keep = np.arange(n) % 7 != 3  # particles that left
+    moved = keep & (rng.uniform(size=n) < 0.33)
+    xi2 = np.where(moved, np.where(xi < 0.5, xi + 0.01, xi - 0.01), xi)  # moved in its cell
+    new = rng.choice(n, 40, replace=False)  # arrivals: new ids at the end
+    second = _particles(np.concatenate([cell[keep], cell[new]]),
+                        np.concatenate([xi2[keep], xi[new]]), np.concatenate([eta[keep], eta[new]]),
+                        np.concatenate([area[keep], area[new]]),
+                        np.concatenate([quad[keep], quad[new]]),
+                        np.concatenate([np.arange(n)[keep], n + np.arange(40)]))
+    g.particle_basis(first)
+    got = g.particle_basis(second).arrays
+    want = fresh_grid.particle_basis(second).arrays
+    assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+    # the same with the first call's weights poisoned: NaN exactly for the particles at rest
+    previous = PreviousWeights()
+    size = 40 * n
+    bufs = [(np.empty(size + 1, np.int64), np.empty(size, np.int64), np.empty(size),
+             np.empty((size, 2)), np.empty((size, 2))) for _ in range(2)]
+    for k, (p, out) in enumerate(zip((first, second), bufs, strict=True)):
+        used = domain_basis(g.geo, g.origin, g.corners, g.neighbour, p.cell, p.xi, p.eta,
+                            p.quad(), *out, previous=previous, ids=p.id)
+        previous.keep(len(p), *out)
+        if k == 0:
+            out[2][:used] = np.nan
+    off = bufs[1][0]
+    copied = np.array([np.isnan(bufs[1][2][off[k]]) for k in range(len(second))])
+    at_rest = np.concatenate([~moved[keep], np.zeros(40, bool)])
+    assert np.array_equal(copied, at_rest) and at_rest.sum() > n // 2
