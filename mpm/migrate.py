@@ -44,9 +44,9 @@ def balanced_destinations(grid: ParticleGrid, particles: Particles) -> np.ndarra
     every rank's cost differs from ``N/P`` by at most about one unit's. The counts are summed
     over the ranks on the units between the first and the last one holding particles (one reduction
     of that range, one of the counts): the flow's rows, not the DEM's. On a gmsh mesh a
-    particle counts with its relative cost (``grid.balance_weights``: 1 inside its cell, 2
-    across a side, 3 around a vertex); on the grid each counts 1 and a cell holding any adds
-    ``grid.unit_cost`` (:data:`mpm.grid.CELL_COST`): the work of its nodes (the P2G box,
+    particle counts with its relative cost (``grid.balance_weights``: 3 inside its cell, 6
+    across a side, 9 around a vertex, 2 at rest); on the grid each counts 1 and a cell holding
+    any adds ``grid.unit_cost`` (:data:`mpm.grid.CELL_COST`): the work of its nodes (the P2G box,
     the nodal update and friction), which is not the same per particle on every strip — a
     deposit's thin margins hold few particles per cell, a moving front many.
     """

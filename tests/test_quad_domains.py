@@ -140,20 +140,24 @@ def _moved_domains(g: MeshParticleGrid, rng, reach: float) -> tuple[np.ndarray, 
 
 
 def test_cost_estimate_follows_the_cells_a_moved_domain_reaches():
-    """The load balance's per-particle cost on a gmsh mesh (1 inside the cell, 2 across a
-    side, 3 around a vertex) against the entries the weights give: a domain called inside has
-    exactly its cell's four nodes, and the entries grow with the estimate (on avaKot's
-    corridor it named 6 entries for a side and 8-9 for a vertex for 94 % of the particles)."""
+    """The load balance's per-particle cost on a gmsh mesh (3 inside the cell, 6 across a
+    side, 9 around a vertex, 2 at rest) against the entries the weights give: a domain called
+    inside has exactly its cell's four nodes, and the entries grow with the estimate (on
+    avaKot's corridor it named 6 entries for a side and 8-9 for a vertex for 94 % of the
+    particles); a particle at rest costs less than any moving one (its weights are copied)."""
     g = _grid(0.3)
     cell, xi, eta, area, quad = _moved_domains(g, np.random.default_rng(3), 0.3)
-    p = Particles(xi, eta, 0 * xi, 0 * xi, area, np.ones_like(xi), 0 * xi, 0 * xi, 0 * xi,
+    u = np.where(np.arange(cell.size) % 5 == 0, 0.0, 1.0)  # every fifth particle at rest
+    p = Particles(xi, eta, 0 * xi, 0 * xi, area, np.ones_like(xi), u, 0 * xi, 0 * xi,
                   0 * xi, 0 * xi, cell=cell, id=np.arange(cell.size))
     p.set_quad(quad)
     cost = g.balance_weights(p)
     entries = np.diff(g.particle_basis(p).arrays[0])
-    assert set(np.unique(cost)) <= {1, 2, 3} and (cost == 1).sum() > 0 and (cost == 3).sum() > 0
-    assert (entries[cost == 1] == 4).all()
-    means = [entries[cost == c].mean() for c in (1, 2, 3)]
+    assert np.array_equal(cost == 2, u == 0.0)
+    moving = cost[u > 0.0]
+    assert set(np.unique(moving)) <= {3, 6, 9} and (moving == 3).sum() > 0
+    assert (moving == 9).sum() > 0 and (entries[cost == 3] == 4).all()
+    means = [entries[cost == c].mean() for c in (3, 6, 9)]
     assert means[0] < means[1] < means[2], means  # more cells reached, more cost
 
 
