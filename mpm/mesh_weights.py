@@ -265,9 +265,9 @@ def domain_basis(geo, origin, corners, neighbour, cell, xi, eta, quad, offsets, 
     ``ids`` the particles' ids (to find them in it). A particle whose cell, ``(ξ, η)`` and
     domain have the bits of the same particle then (a particle at rest) gets that call's
     entries copied: the weights are a function of those eleven numbers (and the mesh)
-    alone, so the result has the bits of a computation. The
-    keys of this call are written to ``previous.next_keys`` (then
-    :meth:`~mpm.weight_reuse.PreviousWeights.keep`).
+    alone, so the result has the bits of a computation. This call's keys go to
+    ``previous.next_keys``; the caller then hands its entries to
+    :meth:`~mpm.weight_reuse.PreviousWeights.keep`.
 
     Returns:
         The number of entries used, or -1 if the buffers are too short (call again with

@@ -91,7 +91,3 @@ class PreviousWeights:
         self.keys, self.next_keys = self.next_keys, self.keys
         self.count = n
         self.entries = (offsets, *entries)
-
-    def forget(self) -> None:
-        """Drop the last call (nothing is reused by the next one)."""
-        self.count = 0
